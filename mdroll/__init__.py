@@ -1,0 +1,26 @@
+"""mdroll: the Method of Dimensionality Reduction for a wheel rolling on a rough rail.
+
+Ensembles of random rough lines (physics.md section 3), the contact force by three algorithms
+(direct sum, bounding tree, edge-incremental; section 4) as Warp kernels on CPU and CUDA, the
+wheel's dynamics (section 5) and ensemble-averaged spectra (section 6). All units SI.
+"""
+
+from .devices import DeviceError, available_devices
+from .ensemble.force import ALGORITHMS, BOUNDARIES, contact_force, step_range
+from .ensemble.lines import rough_lines
+from .params import ParameterError, Params
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "ALGORITHMS",
+    "BOUNDARIES",
+    "DeviceError",
+    "ParameterError",
+    "Params",
+    "available_devices",
+    "contact_force",
+    "rough_lines",
+    "step_range",
+    "__version__",
+]

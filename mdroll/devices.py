@@ -1,0 +1,115 @@
+"""Device selection and array interop between NumPy, Warp and CuPy.
+
+Warp is initialised lazily (its start-up prints a banner and probes CUDA), and CuPy is only
+imported on CUDA paths, so ``import mdroll`` stays cheap and works where neither CUDA nor
+CuPy is installed.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+
+class DeviceError(ValueError):
+    """A device that does not exist, or a CUDA run without the packages it needs."""
+
+
+@functools.cache
+def warp():
+    """The initialised ``warp`` module (quiet)."""
+    import logging
+
+    import warp as wp
+
+    wp.config.log_level = logging.WARNING  # no banner, no per-module load lines
+    wp.config.enable_backward = False  # forward kernels only: halves compile time
+    wp.init()
+    return wp
+
+
+def available_devices() -> list[str]:
+    """Names of the Warp devices present: ``"cpu"`` and ``"cuda:N"`` for each GPU."""
+    return [str(d) for d in warp().get_devices()]
+
+
+def resolve_device(device: str | None) -> str:
+    """Turn ``"auto" | "cpu" | "cuda" | "cuda:N" | None`` into a concrete Warp device name.
+
+    ``"auto"`` and ``None`` pick the first CUDA device when one is present, else the CPU.
+    Raises :class:`DeviceError` naming the available devices when the device does not exist,
+    and saying how to install CuPy when a CUDA device is asked for without it.
+    """
+    wp = warp()
+    names = available_devices()
+    if device is None or device == "auto":
+        device = "cuda:0" if wp.is_cuda_available() else "cpu"
+    if not isinstance(device, str):
+        device = str(device)
+    if device == "cuda":
+        device = "cuda:0"
+    if device not in names:
+        raise DeviceError(f"device {device!r} does not exist here; available devices: {', '.join(names)}")
+    if device.startswith("cuda"):
+        try:
+            import cupy  # noqa: F401
+        except ImportError as exc:  # pragma: no cover - depends on the machine
+            raise DeviceError(
+                f"device {device!r} needs CuPy for cuFFT: install it with pip install -e '.[cuda]' "
+                "(or pip install cupy-cuda12x)"
+            ) from exc
+    return device
+
+
+def is_cuda(device: str) -> bool:
+    return device.startswith("cuda")
+
+
+def device_of(array) -> str | None:
+    """The Warp device an array lives on (``"cpu"`` for NumPy), or None if unknown."""
+    if isinstance(array, np.ndarray):
+        return "cpu"
+    wp = warp()
+    if isinstance(array, wp.array):
+        return str(array.device)
+    if hasattr(array, "__cuda_array_interface__"):
+        return f"cuda:{array.device.id}" if hasattr(array, "device") else "cuda:0"
+    return None
+
+
+def to_warp(array, device: str, dtype=None):
+    """A float64 Warp array on ``device`` viewing (or, across devices, copying) ``array``."""
+    wp = warp()
+    dtype = dtype or wp.float64
+    if isinstance(array, wp.array):
+        if str(array.device) == device:
+            return array
+        return wp.clone(array, device=device)
+    if hasattr(array, "__cuda_array_interface__") and not isinstance(array, np.ndarray):
+        out = wp.from_dlpack(array) if hasattr(array, "__dlpack__") else wp.array(array, dtype=dtype)
+        return out if str(out.device) == device else wp.clone(out, device=device)
+    host = np.ascontiguousarray(array, dtype=np.float64)
+    if device == "cpu":
+        return wp.array(host, dtype=dtype, device="cpu", copy=False)
+    return wp.array(host, dtype=dtype, device=device)
+
+
+def cupy_view(array):
+    """A CuPy array sharing memory with a CUDA Warp array."""
+    import cupy
+
+    return cupy.asarray(array)
+
+
+def cupy_stream(device: str):
+    """A CuPy stream context bound to Warp's stream on ``device``, so that work interleaves in order."""
+    import cupy
+
+    stream = warp().get_stream(device)
+    return cupy.cuda.ExternalStream(stream.cuda_stream)
+
+
+def synchronize(device: str) -> None:
+    """Wait for all work queued on ``device``."""
+    warp().synchronize_device(device)

@@ -1,0 +1,1 @@
+"""Rough-line generation, force batching over devices, dynamics and spectra."""

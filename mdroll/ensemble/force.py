@@ -1,0 +1,288 @@
+"""Contact force of a batch of rough lines by the three MDR algorithms (physics.md section 4).
+
+:func:`contact_force` is the entry point; :func:`prepare_lines` does the per-line preprocessing
+(bounds, wrapped copy for the periodic boundary, prefix sums, min/max tree) that the dynamics
+reuse.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..devices import device_of, resolve_device, to_warp, warp
+from ..params import ParameterError, Params
+
+ALGORITHMS = ("tree", "direct", "edge")
+BOUNDARIES = ("open", "periodic")
+DEFAULT_LEAF_SIZE = 8
+
+
+def check_choice(name: str, value, allowed) -> str:
+    if value not in allowed:
+        raise ParameterError(f"{name} = {value!r} is not allowed: choose one of {', '.join(allowed)}")
+    return value
+
+
+def reach(level: float, curvature: float) -> int:
+    """Largest m >= 0 with ``curvature m^2 <= level`` (-1 if level < 0); the host twin of
+    :func:`mdroll.kernels.common.reach_inclusive`."""
+    if level < 0:
+        return -1
+    m = int(math.floor(math.sqrt(level / curvature)))
+    while m > 0 and curvature * m * m > level:
+        m -= 1
+    while curvature * (m + 1) * (m + 1) <= level:
+        m += 1
+    return m
+
+
+def wheel_margin(params: Params, d: float, h_max: float) -> int:
+    """Springs the wheel keeps from either end of an open line (or wraps, periodic).
+
+    The half-width of the window of possible contact, ``max m`` with ``m^2 dx^2 / R <= d + h_max``,
+    and at least ``floor(a(d)/dx) + 1`` so that the edge formula's end cells lie on the line.
+    """
+    curvature = params.dx**2 / params.R
+    edge_cells = int(math.floor(math.sqrt(d * params.R) / params.dx)) + 1
+    return max(reach(d + h_max, curvature), edge_cells)
+
+
+def step_range(params: Params, boundary: str, d: float, h_max: float) -> tuple[int, int]:
+    """``(first, steps)``: the wheel's first spring index on the line and the number of steps.
+
+    ``periodic``: the wheel visits every spring, ``x_w = s dx`` for s = 0..n-1 (first = 0).
+    ``open`` (the thesis's): the wheel starts at the first spring whose whole window of possible
+    contact (``d + h_max``, see :func:`wheel_margin`) lies on the line, so ``x_w`` starts near a,
+    and steps one spring at a time until that window reaches the end of the line.
+    """
+    check_choice("boundary", boundary, BOUNDARIES)
+    n = params.n_points
+    if boundary == "periodic":
+        return 0, n
+    margin = wheel_margin(params, d, h_max)
+    steps = n - 2 * margin
+    if steps < 1:
+        raise ParameterError(
+            f"L = {params.L!r} m is too short for the open boundary at d = {d:.4g} m, max h = {h_max:.4g} m: "
+            f"the window of possible contact spans {2 * margin + 1} springs of the {n} on the line"
+        )
+    return margin, steps
+
+
+@dataclass
+class PreparedLines:
+    """Lines on a device with everything the force kernels read.
+
+    ``lines`` is what the kernels index: the input itself (open) or a copy with ``first``
+    wrapped springs on each side (periodic). The wheel of step s sits at spring ``first + s``
+    of ``lines``. ``bounds[r] = (min h, max h)`` of row r; ``prefix`` (R, n_work + 1) holds
+    ``S_j = sum_{i<j} h_i`` (eq 18); ``tree`` the implicit min/max tree.
+    """
+
+    lines: object
+    n_work: int
+    first: int
+    steps: int
+    bounds: object
+    prefix: object = None
+    tree: object = None
+    level_offsets: object = None
+    top_level: int = 0
+    leaf_size: int = DEFAULT_LEAF_SIZE
+
+
+def _row_bounds(lines, device):
+    from ..kernels.lines import ROW_BLOCK, block_min_max, row_min_max
+
+    wp = warp()
+    rows, n = lines.shape
+    n_blocks = -(-n // ROW_BLOCK)
+    partial = wp.empty((rows, n_blocks), dtype=wp.vec2d, device=device)
+    bounds = wp.empty(rows, dtype=wp.vec2d, device=device)
+    wp.launch(block_min_max, dim=(rows, n_blocks), inputs=[lines, n, partial], device=device)
+    wp.launch(row_min_max, dim=rows, inputs=[partial, n_blocks, bounds], device=device)
+    return bounds
+
+
+def _prefix_sums(lines, device):
+    from ..kernels.lines import ROW_BLOCK, block_prefix, block_sums, scan_block_sums
+
+    wp = warp()
+    rows, n = lines.shape
+    n_blocks = -(-n // ROW_BLOCK)
+    sums = wp.empty((rows, n_blocks), dtype=wp.float64, device=device)
+    offsets = wp.empty((rows, n_blocks), dtype=wp.float64, device=device)
+    prefix = wp.empty((rows, n + 1), dtype=wp.float64, device=device)
+    wp.launch(block_sums, dim=(rows, n_blocks), inputs=[lines, n, sums], device=device)
+    wp.launch(scan_block_sums, dim=rows, inputs=[sums, n_blocks, offsets], device=device)
+    wp.launch(block_prefix, dim=(rows, n_blocks), inputs=[lines, n, offsets, prefix], device=device)
+    return prefix
+
+
+def tree_levels(n: int, leaf_size: int) -> list[int]:
+    """Node counts per level of the implicit tree over n springs, leaves first, root last."""
+    counts = [-(-n // leaf_size)]
+    while counts[-1] > 1:
+        counts.append(-(-counts[-1] // 2))
+    return counts
+
+
+def _min_max_tree(lines, leaf_size: int, device):
+    from ..kernels.common import TREE_STACK_CAPACITY
+    from ..kernels.lines import tree_leaves, tree_parents
+
+    wp = warp()
+    rows, n = lines.shape
+    counts = tree_levels(n, leaf_size)
+    top_level = len(counts) - 1
+    # the traversal's stack bound (kernels/tree.py): 2 + start level <= 2 + top level
+    if top_level + 2 > TREE_STACK_CAPACITY:
+        raise ParameterError(
+            f"leaf_size = {leaf_size} gives a tree of {top_level + 1} levels over {n} springs; its traversal "
+            f"needs a stack of {top_level + 2} > {TREE_STACK_CAPACITY}: use a larger leaf_size"
+        )
+    offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
+    tree = wp.empty((rows, int(offsets[-1])), dtype=wp.vec2d, device=device)
+    wp.launch(tree_leaves, dim=(rows, counts[0]), inputs=[lines, n, leaf_size, tree], device=device)
+    for level in range(1, len(counts)):
+        wp.launch(
+            tree_parents,
+            dim=(rows, counts[level]),
+            inputs=[tree, int(offsets[level - 1]), counts[level - 1], int(offsets[level])],
+            device=device,
+        )
+    return tree, wp.array(offsets[:-1], dtype=wp.int32, device=device), top_level
+
+
+def prepare_lines(
+    lines,
+    params: Params,
+    algorithm: str,
+    boundary: str,
+    d: float,
+    device: str,
+    leaf_size: int = DEFAULT_LEAF_SIZE,
+    h_max: float | None = None,
+) -> PreparedLines:
+    """Bounds, wrapped copy, prefix sums and tree as the algorithm needs them (see PreparedLines).
+
+    ``h_max`` (m) places the open-boundary wheel and sizes the periodic wrap
+    (:func:`step_range`); by default it is the largest height of ``lines``. Forces stay exact
+    whatever it is: springs off an open line do not exist, and the window of each line is
+    taken from its own maximum.
+    """
+    from ..kernels.lines import periodic_extend
+
+    wp = warp()
+    rows, n = lines.shape
+    bounds = _row_bounds(lines, device)
+    if h_max is None:
+        h_max = float(bounds.numpy()[:, 1].max())
+    first, steps = step_range(params, boundary, d, h_max)
+    work = lines
+    if boundary == "periodic":
+        first = wheel_margin(params, d, h_max)
+        work = wp.empty((rows, n + 2 * first), dtype=wp.float64, device=device)
+        wp.launch(periodic_extend, dim=work.shape, inputs=[lines, n, first, work], device=device)
+    prepared = PreparedLines(lines=work, n_work=work.shape[1], first=first, steps=steps, bounds=bounds, leaf_size=leaf_size)
+    if algorithm in ("tree", "edge"):
+        prepared.prefix = _prefix_sums(work, device)
+    if algorithm == "tree":
+        prepared.tree, prepared.level_offsets, prepared.top_level = _min_max_tree(work, leaf_size, device)
+    return prepared
+
+
+def launch_force(prepared: PreparedLines, params: Params, algorithm: str, d: float, device: str):
+    """The (R, steps) force array (N, Warp float64 on ``device``) at constant indentation d (m)."""
+    from ..kernels.direct import contact_force_direct
+    from ..kernels.edge import contact_force_edge
+    from ..kernels.tree import contact_force_tree
+
+    wp = warp()
+    rows = prepared.lines.shape[0]
+    force = wp.empty((rows, prepared.steps), dtype=wp.float64, device=device)
+    curvature = params.dx**2 / params.R
+    p = prepared
+    if algorithm == "direct":
+        inputs = [p.lines, p.bounds, p.n_work, p.first, d, curvature, params.k_spring, force]
+        kernel = contact_force_direct
+    elif algorithm == "tree":
+        inputs = [p.lines, p.prefix, p.tree, p.level_offsets, p.top_level, p.leaf_size, p.n_work, p.first, d,
+                  curvature, params.k_spring, force]
+        kernel = contact_force_tree
+    else:
+        inputs = [p.prefix, p.first, d, params.dx, params.R, params.E_star, force]
+        kernel = contact_force_edge
+    wp.launch(kernel, dim=force.shape, inputs=inputs, device=device)
+    return force
+
+
+def contact_force(
+    lines,
+    params: Params,
+    algorithm: str = "tree",
+    boundary: str = "open",
+    d: float | None = None,
+    device: str | None = None,
+    *,
+    leaf_size: int = DEFAULT_LEAF_SIZE,
+    h_max: float | None = None,
+):
+    """Contact force F[r, s] (N) of each line r at each wheel step s, at constant indentation d.
+
+    Parameters
+    ----------
+    lines : (R, n) or (n,) float64 array, metres
+        Rough lines on the grid ``x_i = i dx`` with ``n = params.n_points`` (NumPy, Warp or CuPy).
+    params : Params
+    algorithm : {"tree", "direct", "edge"}
+        ``direct``: the exact spring sum (eq 10-12) over the window of possible contact.
+        ``tree``: the bounding-tree algorithm, equal to ``direct`` to rounding.
+        ``edge``: the edge-incremental approximation of eq 49.
+    boundary : {"open", "periodic"}
+        ``open``: the thesis's line, wheel from near x_w = a to near L - a
+        (:func:`step_range`); ``periodic``: the wheel visits every spring, indices wrap.
+    d : float, optional
+        Indentation (m); default ``params.d0`` (eq 14).
+    device : str, optional
+        Where to compute; default the device of ``lines``.
+    leaf_size : int
+        Springs per tree leaf (tree only).
+    h_max : float, optional
+        Height bound (m) that places the open-boundary wheel (default: max of ``lines``).
+
+    Returns
+    -------
+    force : (R, S) float64, newtons
+        NumPy for a NumPy input on the CPU, else a Warp array on the device. The wheel of step s
+        is at ``x_w = (first + s) dx`` with ``first`` from :func:`step_range`.
+    """
+    wp = warp()
+    check_choice("algorithm", algorithm, ALGORITHMS)
+    check_choice("boundary", boundary, BOUNDARIES)
+    if isinstance(leaf_size, bool) or not isinstance(leaf_size, (int, np.integer)) or leaf_size < 1:
+        raise ParameterError(f"leaf_size = {leaf_size!r} is not allowed: it must be a positive integer")
+    d = params.d0 if d is None else d
+    if isinstance(d, bool) or not isinstance(d, (int, float, np.floating, np.integer)) or not (math.isfinite(d) and d > 0):
+        raise ParameterError(f"d = {d!r} is not allowed: the indentation must be positive and finite (m)")
+    device = resolve_device(device if device is not None else device_of(lines) or "cpu")
+    host_input = isinstance(lines, np.ndarray)
+    one_line = getattr(lines, "ndim", 2) == 1
+    data = to_warp(np.atleast_2d(lines) if host_input else lines, device)
+    if one_line:
+        data = data.reshape((1, data.shape[0]))
+    if data.ndim != 2 or data.shape[1] != params.n_points:
+        raise ParameterError(
+            f"lines has shape {tuple(data.shape)}; expected (R, {params.n_points}) for L = {params.L!r} m, dx = {params.dx!r} m"
+        )
+    if data.dtype != wp.float64:
+        raise ParameterError(f"lines must be float64 (the force path is float64 throughout), got {data.dtype}")
+    prepared = prepare_lines(data, params, algorithm, boundary, float(d), device, int(leaf_size), h_max)
+    force = launch_force(prepared, params, algorithm, float(d), device)
+    if host_input and device == "cpu":
+        out = force.numpy()
+        return out[0] if one_line else out
+    return force

@@ -1,0 +1,105 @@
+"""Random rough lines with the 1D MDR power spectrum (physics.md section 3; eq 16-17, 33, 50)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..devices import cupy_stream, cupy_view, is_cuda, resolve_device, warp
+from ..params import ParameterError, Params
+from .fft import irfft_rows
+
+
+def realization_indices(realizations) -> np.ndarray:
+    """``int R`` -> 0..R-1; a sequence of non-negative integers -> those indices (int64)."""
+    if isinstance(realizations, (bool, np.bool_)):
+        raise ParameterError(f"realizations must be an int or a sequence of ints, got {realizations!r}")
+    if isinstance(realizations, (int, np.integer)):
+        if realizations < 1:
+            raise ParameterError(f"realizations = {realizations!r} is not allowed: it must be at least 1")
+        return np.arange(int(realizations), dtype=np.int64)
+    if not isinstance(realizations, (Sequence, np.ndarray, range)):
+        raise ParameterError(f"realizations must be an int or a sequence of ints, got {type(realizations).__name__}")
+    indices = np.asarray(realizations)
+    if indices.ndim != 1 or indices.size == 0 or not np.issubdtype(indices.dtype, np.integer):
+        raise ParameterError(f"realizations must be a non-empty 1D sequence of integers, got {realizations!r}")
+    if indices.min() < 0:
+        raise ParameterError(f"realizations must be non-negative indices, got minimum {indices.min()}")
+    return indices.astype(np.int64)
+
+
+def check_seed(seed) -> int:
+    """The seed as an int in [0, 2^64), or a ParameterError naming it."""
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)):
+        raise ParameterError(f"seed must be an integer in [0, 2^64), got {seed!r}")
+    if not 0 <= int(seed) < 2**64:
+        raise ParameterError(f"seed = {seed!r} is not allowed: it must lie in [0, 2^64)")
+    return int(seed)
+
+
+def rough_lines(params: Params, seed: int, realizations, device: str = "cpu"):
+    """Rough lines h_r(x_i), one per realization, with RMS exactly ``params.h0`` (m).
+
+    Exactly physics.md section 3. On the grid ``x_i = i dx`` (i = 0..n-1, ``n = params.n_points``)
+    and wavenumbers ``q_k = 2 pi k / L`` (L = n dx),
+
+        h(x) = sum_k B(q_k) exp(i (q_k x + phi_k)),   B(q) = sqrt(2 pi / L * C_1D(q)),
+        C_1D(q) = lambda A |q|^(-2H-1) for q_min <= |q| <= q_max, else 0   (eq 33, two-sided),
+
+    with fixed amplitudes and random phases phi_k uniform in [0, 2 pi) (eq 16-17), made by one
+    inverse real FFT; each line is then rescaled so that its RMS over the n points is exactly h0,
+    which fixes lambda A (eq 50; :attr:`Params.lambda_A`).
+
+    The phase of mode k of realization j is a hash of (seed, j, k) alone (a counter-based
+    generator, :func:`mdroll.kernels.lines.uniform_from_counter`), so a line is the same to
+    rounding whatever the batch it is made in and whatever the device.
+
+    Parameters
+    ----------
+    params : Params
+    seed : int
+        Master seed in [0, 2^64).
+    realizations : int or sequence of int
+        ``R`` for indices 0..R-1, or the realization indices themselves.
+    device : str
+        ``"cpu"``, ``"cuda"``, ``"cuda:N"`` or ``"auto"``.
+
+    Returns
+    -------
+    lines : (R, n) float64, metres
+        A NumPy array on the CPU; a Warp array (``.numpy()``, CuPy via ``cupy.asarray``) on CUDA.
+    """
+    from ..kernels.lines import random_phase_spectrum
+
+    wp = warp()
+    device = resolve_device(device)
+    seed = check_seed(seed)
+    indices = realization_indices(realizations)
+    n = params.n_points
+    k_first, k_last = params.mode_range
+    spectrum = wp.empty((indices.size, n // 2 + 1), dtype=wp.vec2d, device=device)
+    wp.launch(
+        random_phase_spectrum,
+        dim=spectrum.shape,
+        inputs=[
+            wp.array(indices, dtype=wp.int64, device=device),
+            wp.uint64(seed),
+            k_first,
+            k_last,
+            -(params.H + 0.5),
+            float(n),
+            spectrum,
+        ],
+        device=device,
+    )
+    lines = irfft_rows(spectrum, n, device)
+    if is_cuda(device):
+        import cupy
+
+        with cupy_stream(device):
+            x = cupy_view(lines)
+            x *= params.h0 / cupy.sqrt(cupy.mean(x * x, axis=1, keepdims=True))
+        return lines
+    lines *= params.h0 / np.sqrt(np.mean(lines * lines, axis=1, keepdims=True))
+    return lines

@@ -1,0 +1,109 @@
+"""Small ``wp.func`` building blocks shared by the three force algorithms (physics.md section 2).
+
+Geometry, in spring units: spring ``l`` sits at ``x_l = l dx``; the wheel centre is at spring
+``c`` (``x_w = c dx``); the indentation is ``d`` (m). The MDR indenter (eq 7) lowers spring
+``l`` by ``curvature * (l - c)^2`` with ``curvature = dx^2 / R`` (m), so its displacement is
+``u_l = h_l + d - curvature (l - c)^2`` (eq 10) and the force ``F = k sum_l max(u_l, 0)``
+(eq 11-12, ``k = E* dx``). The functions here return sums of displacements (m); the kernels
+multiply by k once.
+
+Offsets ``l - c`` are always formed relative to the wheel, in integers, so that closed-form sums
+of squares stay exact (int64) instead of cancelling large absolute positions in float64.
+"""
+
+import warp as wp
+
+#: int32 stack of tree nodes for the explicit-stack traversal (see ``tree.py`` for the bound).
+TREE_STACK_CAPACITY = wp.constant(32)
+tree_stack = wp.types.vector(length=32, dtype=wp.int32)
+
+
+@wp.func
+def square_prefix(t: wp.int64) -> wp.int64:
+    """``sum_{m=1}^{t} m^2 = t (t+1) (2t+1) / 6`` (exact integer).
+
+    As a polynomial it satisfies ``Q(t) - Q(t-1) = t^2`` for every integer t, so
+    ``sum_{m=p}^{q} m^2 = Q(q) - Q(p-1)`` holds for negative offsets too. Exact in int64 for
+    ``|t| < 2^20``.
+    """
+    return t * (t + wp.int64(1)) * (wp.int64(2) * t + wp.int64(1)) // wp.int64(6)
+
+
+@wp.func
+def sum_of_squares(p: int, q: int) -> wp.float64:
+    """``sum_{m=p}^{q} m^2`` for integer offsets p <= q + 1 (0 for an empty range)."""
+    return wp.float64(square_prefix(wp.int64(q)) - square_prefix(wp.int64(p) - wp.int64(1)))
+
+
+@wp.func
+def full_contact_sum(
+    prefix: wp.array2d(dtype=wp.float64),
+    r: int,
+    i: int,
+    j: int,
+    c: int,
+    d: wp.float64,
+    curvature: wp.float64,
+) -> wp.float64:
+    """Exact ``sum_{l=i}^{j-1} (h_l + d - curvature (l - c)^2)`` (m) for springs all in contact.
+
+    The discrete form of eq 19-20: ``(S_j - S_i) + (j - i) d - curvature sum_{m=i-c}^{j-1-c} m^2``
+    with the prefix sums ``S_j = sum_{l<j} h_l`` (eq 18). Returns 0 for ``j <= i``.
+    """
+    if j <= i:
+        return wp.float64(0.0)
+    return (prefix[r, j] - prefix[r, i]) + wp.float64(j - i) * d - curvature * sum_of_squares(i - c, j - 1 - c)
+
+
+@wp.func
+def spring_sum(
+    h: wp.array2d(dtype=wp.float64),
+    r: int,
+    i: int,
+    j: int,
+    c: int,
+    d: wp.float64,
+    curvature: wp.float64,
+) -> wp.float64:
+    """Direct ``sum_{l=i}^{j-1} max(h_l + d - curvature (l - c)^2, 0)`` (m), eq 10-12."""
+    acc = wp.float64(0.0)
+    zero = wp.float64(0.0)
+    for l in range(i, j):
+        m = wp.float64(l - c)
+        acc += wp.max(h[r, l] + d - curvature * m * m, zero)
+    return acc
+
+
+@wp.func
+def reach_inclusive(level: wp.float64, curvature: wp.float64) -> int:
+    """Largest m >= 0 with ``curvature m^2 <= level``; -1 if level < 0.
+
+    With ``level = d + max h`` every spring farther than this from the wheel has u < 0: the
+    window of possible contact (physics.md section 4).
+    """
+    if level < wp.float64(0.0):
+        return -1
+    m = int(wp.floor(wp.sqrt(level / curvature)))
+    # sqrt may round either way: fix the last integer exactly
+    while m > 0 and curvature * wp.float64(m) * wp.float64(m) > level:
+        m -= 1
+    while curvature * wp.float64(m + 1) * wp.float64(m + 1) <= level:
+        m += 1
+    return m
+
+
+@wp.func
+def reach_strict(level: wp.float64, curvature: wp.float64) -> int:
+    """Largest m >= 0 with ``curvature m^2 < level``; -1 if level <= 0.
+
+    With ``level = d + min h`` every spring at most this far from the wheel is in contact
+    whatever h is: the certainly-full core.
+    """
+    if level <= wp.float64(0.0):
+        return -1
+    m = int(wp.floor(wp.sqrt(level / curvature)))
+    while m >= 0 and curvature * wp.float64(m) * wp.float64(m) >= level:
+        m -= 1
+    while curvature * wp.float64(m + 1) * wp.float64(m + 1) < level:
+        m += 1
+    return m

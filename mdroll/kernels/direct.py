@@ -1,0 +1,43 @@
+"""Direct sum, O(n^2) under refinement (physics.md section 4): the exact reference.
+
+Every spring within the window of possible contact ``|l - c| <= M``, ``curvature M^2 <= d + max h``,
+contributes ``max(h_l + d - curvature (l - c)^2, 0)`` (eq 10-12); springs off the line
+(``l < 0`` or ``l >= n``) do not exist.
+"""
+
+import warp as wp
+
+from .common import reach_inclusive, spring_sum
+
+
+@wp.func
+def force_direct(
+    h: wp.array2d(dtype=wp.float64),
+    r: int,
+    n: int,
+    c: int,
+    d: wp.float64,
+    h_max: wp.float64,
+    curvature: wp.float64,
+) -> wp.float64:
+    """Sum of positive spring displacements (m) for the wheel at spring c, indentation d (m)."""
+    window = reach_inclusive(d + h_max, curvature)
+    if window < 0:
+        return wp.float64(0.0)
+    return spring_sum(h, r, wp.max(c - window, 0), wp.min(c + window + 1, n), c, d, curvature)
+
+
+@wp.kernel
+def contact_force_direct(
+    h: wp.array2d(dtype=wp.float64),
+    bounds: wp.array(dtype=wp.vec2d),
+    n: int,
+    first: int,
+    d: wp.float64,
+    curvature: wp.float64,
+    k_spring: wp.float64,
+    force: wp.array2d(dtype=wp.float64),
+):
+    """``force[r, s]`` (N): wheel at spring ``first + s`` of row r, indentation d (m); eq 11-12."""
+    r, s = wp.tid()
+    force[r, s] = k_spring * force_direct(h, r, n, first + s, d, bounds[r][1], curvature)

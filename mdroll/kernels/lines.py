@@ -1,0 +1,175 @@
+"""Kernels that make and pre-process rough lines: random spectra, bounds, prefix sums, min/max tree.
+
+All work on a batch of R lines stored as rows of a 2D float64 array.
+"""
+
+import warp as wp
+
+TWO_PI = wp.constant(wp.float64(6.283185307179586))
+
+#: splitmix64 constants (Steele, Lea & Flood 2014): the golden-ratio increment and the two
+#: multipliers of its output mix.
+GOLDEN_GAMMA = wp.constant(wp.uint64(0x9E3779B97F4A7C15))
+MIX_MULTIPLIER_1 = wp.constant(wp.uint64(0xBF58476D1CE4E5B9))
+MIX_MULTIPLIER_2 = wp.constant(wp.uint64(0x94D049BB133111EB))
+
+#: Springs per thread in the blocked reductions and scans.
+ROW_BLOCK = wp.constant(256)
+
+
+@wp.func
+def mix64(z: wp.uint64) -> wp.uint64:
+    """The splitmix64 finalizer: a bijective 64-bit hash with full avalanche."""
+    z = (z ^ (z >> wp.uint64(30))) * MIX_MULTIPLIER_1
+    z = (z ^ (z >> wp.uint64(27))) * MIX_MULTIPLIER_2
+    return z ^ (z >> wp.uint64(31))
+
+
+@wp.func
+def uniform_from_counter(seed: wp.uint64, realization: wp.int64, mode: int) -> wp.float64:
+    """Uniform float64 in [0, 1) from the counter (seed, realization, mode) alone.
+
+    ``key = mix64(seed + G (realization + 1))`` and ``u = mix64(key + G (mode + 1)) >> 11``
+    scaled by 2^-53 (G the golden gamma): a counter-based generator, so every phase depends
+    only on (seed, realization index, mode), whatever the batch or the device.
+    """
+    key = mix64(seed + GOLDEN_GAMMA * (wp.uint64(realization) + wp.uint64(1)))
+    z = mix64(key + GOLDEN_GAMMA * (wp.uint64(mode) + wp.uint64(1)))
+    return wp.float64(z >> wp.uint64(11)) * wp.float64(1.1102230246251565e-16)
+
+
+@wp.kernel
+def random_phase_spectrum(
+    realizations: wp.array(dtype=wp.int64),
+    seed: wp.uint64,
+    k_first: int,
+    k_last: int,
+    exponent: wp.float64,
+    scale: wp.float64,
+    spectrum: wp.array2d(dtype=wp.vec2d),
+):
+    """Half spectrum X_k (k = 0..n/2) of one rough line per row, for an inverse real FFT.
+
+    ``X_k = scale (k / k_first)^exponent exp(i phi_k)`` for k_first <= k <= k_last, else 0, with
+    ``phi_k = 2 pi u(seed, realization, k)`` (eq 16-17). With ``exponent = -(H + 1/2)`` the
+    amplitude follows ``sqrt(C_1D(q_k))``, ``C_1D ~ q^(-2H-1)`` (eq 33).
+    """
+    r, k = wp.tid()
+    value = wp.vec2d(wp.float64(0.0), wp.float64(0.0))
+    if k >= k_first and k <= k_last:
+        amplitude = scale * wp.pow(wp.float64(k) / wp.float64(k_first), exponent)
+        phase = TWO_PI * uniform_from_counter(seed, realizations[r], k)
+        value = wp.vec2d(amplitude * wp.cos(phase), amplitude * wp.sin(phase))
+    spectrum[r, k] = value
+
+
+@wp.kernel
+def block_min_max(h: wp.array2d(dtype=wp.float64), n: int, partial: wp.array2d(dtype=wp.vec2d)):
+    """Min and max of h over each block of ROW_BLOCK springs of each row."""
+    r, b = wp.tid()
+    start = b * ROW_BLOCK
+    end = wp.min(start + ROW_BLOCK, n)
+    lo = h[r, start]
+    hi = lo
+    for i in range(start + 1, end):
+        lo = wp.min(lo, h[r, i])
+        hi = wp.max(hi, h[r, i])
+    partial[r, b] = wp.vec2d(lo, hi)
+
+
+@wp.kernel
+def row_min_max(partial: wp.array2d(dtype=wp.vec2d), n_blocks: int, bounds: wp.array(dtype=wp.vec2d)):
+    """Min and max of each row from its block partials: ``bounds[r] = (min h, max h)``."""
+    r = wp.tid()
+    b0 = partial[r, 0]
+    lo = b0[0]
+    hi = b0[1]
+    for b in range(1, n_blocks):
+        v = partial[r, b]
+        lo = wp.min(lo, v[0])
+        hi = wp.max(hi, v[1])
+    bounds[r] = wp.vec2d(lo, hi)
+
+
+@wp.kernel
+def block_sums(h: wp.array2d(dtype=wp.float64), n: int, sums: wp.array2d(dtype=wp.float64)):
+    """Sum of h over each block of ROW_BLOCK springs of each row."""
+    r, b = wp.tid()
+    start = b * ROW_BLOCK
+    end = wp.min(start + ROW_BLOCK, n)
+    acc = wp.float64(0.0)
+    for i in range(start, end):
+        acc += h[r, i]
+    sums[r, b] = acc
+
+
+@wp.kernel
+def scan_block_sums(sums: wp.array2d(dtype=wp.float64), n_blocks: int, offsets: wp.array2d(dtype=wp.float64)):
+    """Exclusive scan of the block sums of each row: the prefix sum at each block's start."""
+    r = wp.tid()
+    acc = wp.float64(0.0)
+    for b in range(n_blocks):
+        offsets[r, b] = acc
+        acc += sums[r, b]
+
+
+@wp.kernel
+def block_prefix(
+    h: wp.array2d(dtype=wp.float64),
+    n: int,
+    offsets: wp.array2d(dtype=wp.float64),
+    prefix: wp.array2d(dtype=wp.float64),
+):
+    """Cumulative roughness ``S_j = sum_{i<j} h_i`` for j = 0..n (eq 18), row by row."""
+    r, b = wp.tid()
+    start = b * ROW_BLOCK
+    end = wp.min(start + ROW_BLOCK, n)
+    acc = offsets[r, b]
+    if b == 0:
+        prefix[r, 0] = wp.float64(0.0)
+    for i in range(start, end):
+        acc += h[r, i]
+        prefix[r, i + 1] = acc
+
+
+@wp.kernel
+def tree_leaves(h: wp.array2d(dtype=wp.float64), n: int, leaf_size: int, tree: wp.array2d(dtype=wp.vec2d)):
+    """Level 0 of the implicit min/max tree: (min h, max h) of each leaf of ``leaf_size`` springs."""
+    r, j = wp.tid()
+    start = j * leaf_size
+    end = wp.min(start + leaf_size, n)
+    lo = h[r, start]
+    hi = lo
+    for i in range(start + 1, end):
+        lo = wp.min(lo, h[r, i])
+        hi = wp.max(hi, h[r, i])
+    tree[r, j] = wp.vec2d(lo, hi)
+
+
+@wp.kernel
+def tree_parents(
+    tree: wp.array2d(dtype=wp.vec2d),
+    child_offset: int,
+    child_count: int,
+    parent_offset: int,
+):
+    """One level up the tree: node j covers children 2j and 2j+1 (the last may be missing)."""
+    r, j = wp.tid()
+    left = tree[r, child_offset + 2 * j]
+    lo = left[0]
+    hi = left[1]
+    if 2 * j + 1 < child_count:
+        right = tree[r, child_offset + 2 * j + 1]
+        lo = wp.min(lo, right[0])
+        hi = wp.max(hi, right[1])
+    tree[r, parent_offset + j] = wp.vec2d(lo, hi)
+
+
+@wp.kernel
+def periodic_extend(h: wp.array2d(dtype=wp.float64), n: int, pad: int, extended: wp.array2d(dtype=wp.float64)):
+    """``extended[r, i] = h[r, (i - pad) mod n]``: the line with ``pad`` wrapped springs each side."""
+    r, i = wp.tid()
+    j = (i - pad) % n
+    if j < 0:
+        j += n
+    extended[r, i] = h[r, j]

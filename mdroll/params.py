@@ -1,0 +1,257 @@
+"""Physical and numerical parameters of a rolling-contact ensemble (physics.md section 1).
+
+All quantities are SI: pascal, metre, kilogram, newton, second; wavenumbers in rad/m.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+
+class ParameterError(ValueError):
+    """A parameter is out of range, of the wrong type or not finite.
+
+    The message names the parameter, the value given and what is allowed.
+    """
+
+
+def _check_finite_positive(name: str, value) -> None:
+    if not (isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)):
+        raise ParameterError(f"{name} must be a real number, got {value!r} ({type(value).__name__})")
+    if not math.isfinite(value) or value <= 0:
+        raise ParameterError(f"{name} = {value!r} is not allowed: it must be positive and finite")
+
+
+@dataclass(frozen=True)
+class Params:
+    """Every parameter of physics.md section 1, with the thesis defaults (Table 1, Appendix A).
+
+    Attributes
+    ----------
+    E : float
+        Young's modulus of wheel and rail (Pa). Default 210 GPa.
+    nu : float
+        Poisson's ratio, in (-1, 0.5). Default 0.3.
+    R : float
+        Wheel radius (m). Default 0.5 m.
+    m : float
+        Wheel mass (kg). Default 500 kg.
+    F_N : float
+        Normal load (N). Default 40 kN.
+    v0 : float
+        Rolling speed (m/s). Default 10 m/s.
+    L : float
+        Length of the generated rough line (m). Default 5 m. The grid has
+        ``n_points = round(L / dx)`` springs; spectra use ``length = n_points * dx``.
+    dx : float
+        Spring spacing (m). Default 5 um.
+    h0 : float
+        RMS roughness of the 1D MDR line (m). Default 0.5 um.
+    H : float
+        Hurst exponent, in (0, 1). Default 0.7.
+    q_min : float
+        Long-wave cutoff (rad/m). Default 2 pi / 5 mm.
+    q_max : float or None
+        Short-wave cutoff (rad/m), at most the Nyquist wavenumber pi/dx. ``None`` (default)
+        means pi/dx.
+    n_real : int
+        Number of realizations in an ensemble. Default 300.
+    """
+
+    E: float = 210e9
+    nu: float = 0.3
+    R: float = 0.5
+    m: float = 500.0
+    F_N: float = 40e3
+    v0: float = 10.0
+    L: float = 5.0
+    dx: float = 5e-6
+    h0: float = 0.5e-6
+    H: float = 0.7
+    q_min: float = 2.0 * math.pi / 5e-3
+    q_max: float | None = field(default=None)
+    n_real: int = 300
+
+    def __post_init__(self) -> None:
+        for name in ("E", "R", "m", "F_N", "v0", "L", "dx", "h0", "q_min"):
+            _check_finite_positive(name, getattr(self, name))
+        for name in ("nu", "H"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float, np.integer, np.floating)) or isinstance(value, bool):
+                raise ParameterError(f"{name} must be a real number, got {value!r} ({type(value).__name__})")
+        if not (math.isfinite(self.nu) and -1.0 < self.nu < 0.5):
+            raise ParameterError(f"nu = {self.nu!r} is not allowed: Poisson's ratio must lie in (-1, 0.5)")
+        if not (math.isfinite(self.H) and 0.0 < self.H < 1.0):
+            raise ParameterError(f"H = {self.H!r} is not allowed: the Hurst exponent must lie in (0, 1)")
+        if self.q_max is None:
+            object.__setattr__(self, "q_max", math.pi / self.dx)
+        _check_finite_positive("q_max", self.q_max)
+        nyquist = math.pi / self.dx
+        if self.q_max > nyquist * (1.0 + 1e-12):
+            raise ParameterError(
+                f"q_max = {self.q_max!r} rad/m is not allowed: it must not exceed the Nyquist "
+                f"wavenumber pi/dx = {nyquist:.6g} rad/m"
+            )
+        if self.q_min >= self.q_max:
+            raise ParameterError(
+                f"q_min = {self.q_min!r} rad/m is not allowed: it must be below q_max = {self.q_max:.6g} rad/m"
+            )
+        if not isinstance(self.n_real, (int, np.integer)) or isinstance(self.n_real, bool) or self.n_real < 1:
+            raise ParameterError(f"n_real = {self.n_real!r} is not allowed: it must be a positive integer")
+        if self.n_points < 2:
+            raise ParameterError(f"L = {self.L!r} m is not allowed: it must hold at least two springs of dx = {self.dx!r} m")
+        if self.a / self.dx < 10.0:
+            raise ParameterError(
+                f"dx = {self.dx!r} m is not allowed: the contact radius a = {self.a:.4g} m spans only "
+                f"{self.a / self.dx:.3g} springs; a/dx must be at least 10 (contact not resolved)"
+            )
+        if self.L < 4.0 * self.a:
+            raise ParameterError(
+                f"L = {self.L!r} m is not allowed: it must be at least 4a = {4.0 * self.a:.4g} m "
+                "(twice the contact width)"
+            )
+        k = self._band_modes()
+        if k.size == 0:
+            raise ParameterError(
+                f"q_min = {self.q_min!r}, q_max = {self.q_max!r} rad/m hold no wavenumber q_k = 2 pi k / L "
+                f"of the grid (2 pi / L = {2 * math.pi / self.length:.6g} rad/m)"
+            )
+
+    # ------------------------------------------------------------------ derived quantities
+    @property
+    def E_star(self) -> float:
+        """Effective modulus E* = E / (2 (1 - nu^2)) (Pa), eq 1-2 (same material both sides)."""
+        return self.E / (2.0 * (1.0 - self.nu**2))
+
+    @property
+    def d0(self) -> float:
+        """Hertz indentation d0 = (3 F_N / (4 E* sqrt(R)))^(2/3) (m), eq 14."""
+        return (3.0 * self.F_N / (4.0 * self.E_star * math.sqrt(self.R))) ** (2.0 / 3.0)
+
+    @property
+    def a(self) -> float:
+        """Hertz contact radius a = sqrt(d0 R) (m), eq 15."""
+        return math.sqrt(self.d0 * self.R)
+
+    @property
+    def k_spring(self) -> float:
+        """Stiffness of one MDR spring k = E* dx (N/m), section 2."""
+        return self.E_star * self.dx
+
+    @property
+    def F_hertz(self) -> float:
+        """Hertz force (4/3) E* a^3 / R at d0 (N); equals F_N."""
+        return 4.0 / 3.0 * self.E_star * self.a**3 / self.R
+
+    @property
+    def k_contact(self) -> float:
+        """Linearized contact stiffness k_c = dF/dd = 2 E* a (N/m), section 4.2."""
+        return 2.0 * self.E_star * self.a
+
+    @property
+    def omega_0(self) -> float:
+        """Contact resonance omega_0 = sqrt(k_c / m) = sqrt(2 a E* / m) (rad/s), section 4.2."""
+        return math.sqrt(self.k_contact / self.m)
+
+    @property
+    def n_points(self) -> int:
+        """Number of springs on the line, round(L / dx)."""
+        return int(round(self.L / self.dx))
+
+    @property
+    def length(self) -> float:
+        """Length of the discrete line n_points * dx (m); the L of every spectrum."""
+        return self.n_points * self.dx
+
+    @property
+    def dt(self) -> float:
+        """Time step dt = dx / v0 (s): the line moves one spring per step."""
+        return self.dx / self.v0
+
+    @property
+    def springs_in_contact(self) -> float:
+        """Number of springs in the smooth Hertz contact, 2 a / dx."""
+        return 2.0 * self.a / self.dx
+
+    def _band_modes(self) -> np.ndarray:
+        """Indices k >= 1 of the grid wavenumbers q_k = 2 pi k / length inside [q_min, q_max]."""
+        n = self.n_points
+        dq = 2.0 * math.pi / self.length
+        k = np.arange(1, n // 2 + 1, dtype=np.int64)
+        return k[self.in_band(dq * k)]
+
+    def in_band(self, q) -> np.ndarray:
+        """Mask of ``q_min <= |q| <= q_max`` (inclusive, to a relative 1e-12 so that a grid
+        wavenumber landing on a cutoff up to rounding, e.g. q_k = 2 pi / 5 mm, is inside)."""
+        q = np.abs(np.asarray(q, dtype=np.float64))
+        return (q >= self.q_min * (1.0 - 1e-12)) & (q <= self.q_max * (1.0 + 1e-12))
+
+    @property
+    def mode_range(self) -> tuple[int, int]:
+        """First and last index k (inclusive) of the generated modes q_k = 2 pi k / length."""
+        k = self._band_modes()
+        return int(k[0]), int(k[-1])
+
+    @property
+    def lambda_A(self) -> float:
+        """Prefactor lambda(H) A of C_1D(q) = lambda A |q|^(-2H-1) (m^(2-2H)), eq 33 and eq 50.
+
+        The discrete normalization of physics.md section 3, which makes the two-sided PSD
+        sum to the mean square height:
+        ``lambda A = h0^2 / (2 (2 pi / L) sum_{q_min <= q_k <= q_max} q_k^(-2H-1))``.
+        """
+        dq = 2.0 * math.pi / self.length
+        q = dq * self._band_modes().astype(np.float64)
+        return self.h0**2 / (2.0 * dq * float(np.sum(q ** (-2.0 * self.H - 1.0))))
+
+    def psd(self, q) -> np.ndarray:
+        """Two-sided 1D MDR roughness PSD C_1D(q) = lambda A |q|^(-2H-1) on the band (m^3), eq 33.
+
+        ``q`` in rad/m; zero outside q_min <= |q| <= q_max.
+        """
+        q = np.abs(np.asarray(q, dtype=np.float64))
+        inside = self.in_band(q)
+        out = np.zeros_like(q)
+        out[inside] = self.lambda_A * q[inside] ** (-2.0 * self.H - 1.0)
+        return out
+
+    # ------------------------------------------------------------------ helpers
+    def replace(self, **changes) -> "Params":
+        """A copy with some fields changed (validated again).
+
+        ``q_max`` follows a change of ``dx`` unless it is given explicitly or was set to
+        something other than the Nyquist wavenumber.
+        """
+        unknown = set(changes) - {f.name for f in fields(self)}
+        if unknown:
+            raise ParameterError(
+                f"unknown parameter(s) {sorted(unknown)}; valid ones are {[f.name for f in fields(self)]}"
+            )
+        if "q_max" not in changes and math.isclose(self.q_max, math.pi / self.dx, rel_tol=1e-12):
+            changes["q_max"] = None
+        return dataclasses.replace(self, **changes)
+
+    def as_dict(self) -> dict:
+        """The fields as a plain dict (q_max resolved)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    def derived(self) -> dict:
+        """Derived quantities as ``{name: (value, unit, description)}``."""
+        return {
+            "E_star": (self.E_star, "Pa", "effective modulus E/(2(1-nu^2))"),
+            "d0": (self.d0, "m", "Hertz indentation (eq 14)"),
+            "a": (self.a, "m", "contact radius sqrt(d0 R) (eq 15)"),
+            "k_spring": (self.k_spring, "N/m", "spring stiffness E* dx"),
+            "F_hertz": (self.F_hertz, "N", "Hertz force (4/3) E* a^3/R"),
+            "k_contact": (self.k_contact, "N/m", "contact stiffness 2 E* a"),
+            "omega_0": (self.omega_0, "rad/s", "contact resonance sqrt(2 a E*/m)"),
+            "f_0": (self.omega_0 / (2 * math.pi), "Hz", "contact resonance omega_0/(2 pi)"),
+            "n_points": (self.n_points, "-", "springs on the line, L/dx"),
+            "dt": (self.dt, "s", "time step dx/v0"),
+            "springs_in_contact": (self.springs_in_contact, "-", "2a/dx"),
+            "lambda_A": (self.lambda_A, "m^(2-2H)", "PSD prefactor (eq 50, discrete)"),
+        }

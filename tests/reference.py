@@ -1,0 +1,60 @@
+"""Independent NumPy references for the tests: written from physics.md, sharing no code with mdroll."""
+
+import numpy as np
+
+GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+
+
+def to_numpy(array):
+    """A NumPy copy of a NumPy, Warp or CuPy array."""
+    if isinstance(array, np.ndarray):
+        return array
+    if hasattr(array, "numpy"):
+        return array.numpy()
+    return array.get()
+
+
+def splitmix_mix(z):
+    with np.errstate(over="ignore"):
+        z = np.asarray(z, dtype=np.uint64)
+        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        return z ^ (z >> np.uint64(31))
+
+
+def uniform_phases(seed, realization, modes):
+    """u in [0,1) for the counter (seed, realization, mode), as documented in kernels/lines.py."""
+    with np.errstate(over="ignore"):
+        key = splitmix_mix(np.uint64(seed) + GOLDEN * np.uint64(realization + 1))
+        z = splitmix_mix(key + GOLDEN * (np.asarray(modes, dtype=np.uint64) + np.uint64(1)))
+    return (z >> np.uint64(11)).astype(np.float64) * 2.0**-53
+
+
+def rough_line(params, seed, realization):
+    """physics.md section 3, with numpy.fft: phases from the counter hash, RMS rescaled to h0."""
+    n = params.n_points
+    L = n * params.dx
+    k = np.arange(n // 2 + 1)
+    q = 2 * np.pi * k / L
+    band = (q >= params.q_min * (1 - 1e-12)) & (q <= params.q_max * (1 + 1e-12))  # inclusive, to rounding
+    B = np.zeros(n // 2 + 1)
+    B[band] = q[band] ** (-(params.H + 0.5))
+    phase = 2 * np.pi * uniform_phases(seed, realization, k)
+    h = np.fft.irfft(B * np.exp(1j * phase), n=n)
+    return h * params.h0 / np.sqrt(np.mean(h**2))
+
+
+def direct_force(h, params, x_wheel, d):
+    """F(x_w, d) = E* dx sum_i max(h_i + d - (x_i - x_w)^2 / R, 0) (eq 10-12), every spring on the line."""
+    x = np.arange(h.size) * params.dx
+    u = h[None, :] + d - (x[None, :] - np.asarray(x_wheel)[:, None]) ** 2 / params.R
+    return params.E_star * params.dx * np.sum(np.maximum(u, 0.0), axis=1)
+
+
+def psd(series, dx):
+    """Two-sided PSD C(q_k) = L/(2 pi) |B_k|^2, B_k = (1/N) sum_s (F_s - mean) e^{-i q_k x_s} (section 6)."""
+    series = np.asarray(series, dtype=np.float64)
+    n = series.shape[-1]
+    B = np.fft.rfft(series - series.mean(axis=-1, keepdims=True), axis=-1) / n
+    q = 2 * np.pi * np.arange(n // 2 + 1) / (n * dx)
+    return q, n * dx / (2 * np.pi) * np.abs(B) ** 2

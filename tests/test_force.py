@@ -1,0 +1,161 @@
+"""The three force algorithms (physics.md sections 2 and 4) against independent references."""
+
+import numpy as np
+import pytest
+from reference import direct_force, psd, to_numpy
+
+from mdroll import ParameterError, Params, contact_force, rough_lines, step_range
+
+SMALL = Params(L=0.03, dx=20e-6)  # 1500 springs, a/dx = 253
+
+
+def _lines(params, seed, count, device):
+    return rough_lines(params, seed=seed, realizations=count, device=device)
+
+
+@pytest.mark.parametrize("boundary", ["open", "periodic"])
+@pytest.mark.parametrize("h0,d_factor", [(0.5e-6, 1.0), (5e-6, 1.0), (2e-6, 0.9)])
+def test_direct_matches_numpy_reference(device, boundary, h0, d_factor):
+    p = SMALL.replace(h0=h0)
+    d = p.d0 * d_factor
+    lines = to_numpy(_lines(p, 11, 3, device))
+    force = to_numpy(contact_force(lines if device == "cpu" else _lines(p, 11, 3, device), p, "direct", boundary, d=d, device=device))
+    n = p.n_points
+    first, steps = step_range(p, boundary, d, lines.max())
+    assert force.shape == (3, steps)
+    for r in range(3):
+        if boundary == "open":
+            x_wheel = (first + np.arange(steps)) * p.dx
+            ref = direct_force(lines[r], p, x_wheel, d)
+        else:  # a periodic line: the wheel sees three copies side by side
+            tiled = np.tile(lines[r], 3)
+            ref = direct_force(tiled, p, (n + np.arange(steps)) * p.dx, d)
+        assert np.max(np.abs(force[r] - ref) / ref) <= 1e-12
+
+
+@pytest.mark.parametrize("boundary", ["open", "periodic"])
+@pytest.mark.parametrize("H", [0.3, 0.7, 0.9])
+@pytest.mark.parametrize("h0", [0.5e-6, 5e-6])
+def test_tree_equals_direct(device, boundary, H, h0):
+    p = Params(L=0.04, dx=10e-6, H=H, h0=h0)
+    lines = _lines(p, 7, 3, device)
+    direct = to_numpy(contact_force(lines, p, "direct", boundary, device=device))
+    for leaf_size in (1, 3, 8, 32):
+        tree = to_numpy(contact_force(lines, p, "tree", boundary, device=device, leaf_size=leaf_size))
+        assert np.max(np.abs(tree - direct)) <= 1e-12 * p.F_N, leaf_size
+
+
+def test_tree_equals_direct_with_gaps_and_shallow_indentation(device):
+    # h0 = 5 um on a 51 um indentation, and d = 3 um < max h: the contact breaks into patches
+    p = Params(L=0.04, dx=10e-6, h0=5e-6, H=0.3)
+    lines = _lines(p, 3, 2, device)
+    for d in (p.d0, 3e-6):
+        direct = to_numpy(contact_force(lines, p, "direct", "periodic", d=d, device=device))
+        tree = to_numpy(contact_force(lines, p, "tree", "periodic", d=d, device=device, leaf_size=4))
+        assert np.max(np.abs(tree - direct)) <= 1e-12 * p.F_N
+
+
+@pytest.mark.parametrize("dx", [5e-6, 20e-6])
+def test_smooth_line_gives_hertz_force(device, dx):
+    # Bound (Euler-Maclaurin on the spring sum with the kink at |x| = a):
+    # (F_sum - F_Hertz)/F_Hertz lies in [-1/4, 1/8] (dx/a)^2 (+ higher order); the test uses 0.26 (dx/a)^2.
+    p = Params(L=0.03, dx=dx)
+    flat = np.zeros((1, p.n_points))
+    bound = 0.26 * (p.dx / p.a) ** 2
+    for algorithm in ("direct", "tree"):
+        force = to_numpy(contact_force(flat, p, algorithm, "periodic", device=device))
+        assert np.max(np.abs(force / p.F_N - 1)) <= bound
+        assert np.ptp(force) == 0.0 or np.ptp(force) <= 1e-12 * p.F_N
+    edge = to_numpy(contact_force(flat, p, "edge", "periodic", device=device))
+    np.testing.assert_allclose(edge, p.F_N, rtol=1e-12)
+
+
+def test_edge_formula_against_numpy(device):
+    """Eq 49 evaluated independently: the linear interpolant integrated by np.interp on a fine grid."""
+    p = SMALL.replace(h0=1e-6)
+    lines = to_numpy(_lines(p, 4, 2, device))
+    edge = to_numpy(contact_force(lines if device == "cpu" else _lines(p, 4, 2, device), p, "edge", "open", device=device))
+    first, steps = step_range(p, "open", p.d0, lines.max())
+    x = np.arange(p.n_points) * p.dx
+    for r in range(2):
+        for s in (0, steps // 3, steps - 1):
+            xw = (first + s) * p.dx
+            fine = np.linspace(xw - p.a, xw + p.a, 400_001)
+            hf = np.interp(fine, x, lines[r])
+            integral = np.sum((hf[1:] + hf[:-1]) * 0.5 * np.diff(fine))
+            quad = p.E_star * p.R / (4 * p.a) * (np.interp(xw + p.a, x, lines[r]) ** 2 + np.interp(xw - p.a, x, lines[r]) ** 2)
+            ref = p.F_N + p.E_star * integral + quad
+            assert abs(edge[r, s] - ref) < 1e-9 * p.F_N
+
+
+def test_edge_against_direct_mean_shift_and_low_band():
+    """Eq 48-49 on the thesis defaults (dx = 5 um), periodic: the mean force shift is the mean of
+    the quadratic edge term (within 1 %), and the low band q < q_min/2 of the PSDs agrees (5 %)."""
+    p = Params(L=0.2)
+    lines = _lines(p, 21, 6, "cpu")
+    direct = contact_force(lines, p, "tree", "periodic")  # equal to the direct sum (test_tree_equals_direct)
+    edge = contact_force(lines, p, "edge", "periodic")
+    smooth = contact_force(np.zeros((1, p.n_points)), p, "direct", "periodic")[0, 0]
+    x = np.arange(p.n_points) * p.dx
+    shifts = []
+    for r in range(lines.shape[0]):
+        right = np.interp((x + p.a) % p.length, x, lines[r], period=p.length)
+        left = np.interp((x - p.a) % p.length, x, lines[r], period=p.length)
+        shifts.append(p.E_star * p.R / (4 * p.a) * np.mean(right**2 + left**2))
+    assert np.mean(direct) - smooth == pytest.approx(np.mean(shifts), rel=0.01)
+    q, C_direct = psd(direct, p.dx)
+    _, C_edge = psd(edge, p.dx)
+    low = (q > 0) & (q < p.q_min / 2)
+    assert np.mean(C_edge[:, low]) / np.mean(C_direct[:, low]) == pytest.approx(1.0, abs=0.05)
+
+
+def test_open_boundary_geometry():
+    p = SMALL
+    lines = to_numpy(_lines(p, 2, 1, "cpu"))
+    first, steps = step_range(p, "open", p.d0, lines.max())
+    window = np.sqrt(p.R * (p.d0 + lines.max())) / p.dx
+    assert first == int(np.floor(window))  # the first spring whose whole window lies on the line
+    assert first + steps - 1 + first == p.n_points - 1  # ... and the last
+    assert abs(first * p.dx - p.a) < 0.1 * p.a  # near x_w = a
+    assert step_range(p, "periodic", p.d0, lines.max()) == (0, p.n_points)
+
+
+def test_periodic_series_is_periodic_and_shift_invariant():
+    p = SMALL
+    lines = to_numpy(_lines(p, 8, 1, "cpu"))
+    force = contact_force(lines, p, "tree", "periodic")
+    rolled = contact_force(np.roll(lines, 37, axis=1), p, "tree", "periodic")
+    np.testing.assert_allclose(np.roll(force, 37, axis=1), rolled, rtol=1e-13)
+
+
+def test_cpu_and_cuda_agree(cuda_devices):
+    if not cuda_devices:
+        pytest.skip("no CUDA device")
+    p = SMALL.replace(h0=2e-6)
+    lines = to_numpy(_lines(p, 1, 3, "cpu"))
+    for algorithm in ("direct", "tree", "edge"):
+        cpu = contact_force(lines, p, algorithm, "open")
+        for dev in cuda_devices:
+            gpu = to_numpy(contact_force(lines, p, algorithm, "open", device=dev))
+            assert np.max(np.abs(gpu - cpu)) <= 1e-12 * p.F_N
+
+
+@pytest.mark.parametrize(
+    "kwargs,name",
+    [
+        ({"algorithm": "fast"}, "algorithm"),
+        ({"boundary": "wrap"}, "boundary"),
+        ({"d": -1e-6}, "d"),
+        ({"d": float("nan")}, "d"),
+        ({"leaf_size": 0}, "leaf_size"),
+    ],
+)
+def test_bad_arguments(kwargs, name):
+    lines = np.zeros((1, SMALL.n_points))
+    with pytest.raises(ParameterError, match=name):
+        contact_force(lines, SMALL, **kwargs)
+
+
+def test_wrong_line_length_is_refused():
+    with pytest.raises(ParameterError, match="shape"):
+        contact_force(np.zeros((2, 100)), SMALL)

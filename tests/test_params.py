@@ -1,0 +1,68 @@
+"""Params: thesis defaults, derived quantities against hand values, and every bad value rejected."""
+
+import math
+
+import numpy as np
+import pytest
+
+from mdroll import ParameterError, Params
+
+
+def test_defaults_and_derived_against_hand_values():
+    p = Params()
+    E_star = 210e9 / (2 * (1 - 0.09))
+    assert p.E_star == pytest.approx(E_star, rel=1e-15)
+    d0 = (3 * 40e3 / (4 * E_star * math.sqrt(0.5))) ** (2 / 3)
+    assert p.d0 == pytest.approx(d0, rel=1e-15)
+    assert p.d0 == pytest.approx(51.32e-6, rel=1e-3)  # physics.md section 1
+    assert p.a == pytest.approx(5.066e-3, rel=1e-3)
+    assert p.F_hertz == pytest.approx(40e3, rel=1e-12)
+    assert p.k_contact == pytest.approx(2 * E_star * p.a, rel=1e-15)
+    assert p.omega_0 == pytest.approx(1529, rel=1e-3)  # physics.md section 5
+    assert p.n_points == 1_000_000
+    assert p.dt == pytest.approx(5e-7)
+    assert p.q_max == pytest.approx(math.pi / 5e-6)
+    assert p.springs_in_contact == pytest.approx(2026, rel=1e-3)
+
+
+def test_lambda_A_discrete_normalization_and_continuum_limit():
+    p = Params(L=0.5)
+    dq = 2 * math.pi / p.length
+    k = np.arange(1, p.n_points // 2 + 1)
+    q = dq * k
+    band = (q >= p.q_min) & (q <= p.q_max)
+    # the two-sided PSD integrates to h0^2 (physics.md section 3)
+    assert 2 * dq * np.sum(p.lambda_A * q[band] ** (-2 * p.H - 1)) == pytest.approx(p.h0**2, rel=1e-13)
+    # continuum limit H h0^2 q_min^(2H), within the discretization of the band edge
+    assert p.lambda_A == pytest.approx(p.H * p.h0**2 * p.q_min ** (2 * p.H), rel=0.03)
+
+
+def test_replace_revalidates_and_follows_nyquist():
+    p = Params().replace(dx=20e-6, L=0.2)
+    assert p.q_max == pytest.approx(math.pi / 20e-6)
+    with pytest.raises(ParameterError, match="H"):
+        p.replace(H=1.2)
+    with pytest.raises(ParameterError, match="unknown parameter"):
+        p.replace(hurst=0.5)
+
+
+BAD = [
+    ("H", 0.0), ("H", 1.0), ("H", -0.3), ("H", float("nan")),
+    ("E", 0.0), ("E", -1.0), ("E", float("inf")), ("R", 0.0), ("m", -5.0), ("F_N", float("nan")),
+    ("v0", 0.0), ("L", -1.0), ("dx", 0.0), ("h0", 0.0), ("h0", float("inf")),
+    ("nu", 0.5), ("nu", -1.0), ("nu", 0.7),
+    ("q_min", 0.0), ("q_min", 1e6),  # q_min >= q_max
+    ("q_max", 1e7),  # above the Nyquist pi/dx = 6.28e5
+    ("dx", 600e-6),  # a/dx < 10
+    ("L", 0.015),  # L < 4a
+    ("n_real", 0), ("n_real", 2.5), ("E", "210e9"), ("H", True),
+]
+
+
+@pytest.mark.parametrize("name,value", BAD, ids=[f"{n}={v!r}" for n, v in BAD])
+def test_bad_values_name_the_parameter(name, value):
+    with pytest.raises(ParameterError) as info:
+        Params(**{name: value})
+    message = str(info.value)
+    assert message.split()[0].startswith(name) or f"{name} " in message, message
+    assert isinstance(info.value, ValueError)
