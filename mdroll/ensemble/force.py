@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..devices import device_of, resolve_device, to_warp, warp
+from ..kernels.common import MAX_CLOSED_FORM_OFFSET
 from ..params import ParameterError, Params
 
 ALGORITHMS = ("tree", "direct", "edge")
@@ -191,24 +192,35 @@ def prepare_lines(
     if algorithm in ("tree", "edge"):
         prepared.prefix = _prefix_sums(work, device)
     if algorithm == "tree":
+        window = reach(d + h_max, params.dx**2 / params.R)
+        if window > MAX_CLOSED_FORM_OFFSET:
+            raise ParameterError(
+                f"dx = {params.dx!r} m is too fine for the tree: the contact window spans {window} springs a side, "
+                f"beyond the {MAX_CLOSED_FORM_OFFSET} for which its float64 closed-form sums of squares are exact"
+            )
         prepared.tree, prepared.level_offsets, prepared.top_level = _min_max_tree(work, leaf_size, device)
     return prepared
 
 
-def launch_force(prepared: PreparedLines, params: Params, algorithm: str, d: float, device: str):
-    """The (R, steps) force array (N, Warp float64 on ``device``) at constant indentation d (m)."""
-    from ..kernels.direct import contact_force_direct
+def launch_force(prepared: PreparedLines, params: Params, algorithm: str, d: float, device: str, out=None):
+    """The (R, steps) force array (N, Warp float64 on ``device``) at constant indentation d (m).
+
+    ``out``: a preallocated (R, steps) float64 array to write into.
+    """
+    from ..kernels.direct import BLOCK, contact_force_direct
     from ..kernels.edge import contact_force_edge
     from ..kernels.tree import contact_force_tree
 
     wp = warp()
     rows = prepared.lines.shape[0]
-    force = wp.empty((rows, prepared.steps), dtype=wp.float64, device=device)
+    force = out if out is not None else wp.empty((rows, prepared.steps), dtype=wp.float64, device=device)
     curvature = params.dx**2 / params.R
     p = prepared
+    dim = force.shape
     if algorithm == "direct":
-        inputs = [p.lines, p.bounds, p.n_work, p.first, d, curvature, params.k_spring, force]
+        inputs = [p.lines, p.bounds, p.n_work, p.first, p.steps, d, curvature, params.k_spring, force]
         kernel = contact_force_direct
+        dim = (rows, -(-p.steps // BLOCK))
     elif algorithm == "tree":
         inputs = [p.lines, p.prefix, p.tree, p.level_offsets, p.top_level, p.leaf_size, p.n_work, p.first, d,
                   curvature, params.k_spring, force]
@@ -216,7 +228,7 @@ def launch_force(prepared: PreparedLines, params: Params, algorithm: str, d: flo
     else:
         inputs = [p.prefix, p.first, d, params.dx, params.R, params.E_star, force]
         kernel = contact_force_edge
-    wp.launch(kernel, dim=force.shape, inputs=inputs, device=device)
+    wp.launch(kernel, dim=dim, inputs=inputs, device=device)
     return force
 
 

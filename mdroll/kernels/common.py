@@ -18,21 +18,26 @@ TREE_STACK_CAPACITY = wp.constant(32)
 tree_stack = wp.types.vector(length=32, dtype=wp.int32)
 
 
+#: Offsets |m| up to which the float64 closed form below is exact: |t (t+1) (2t+1)| < 2^53.
+MAX_CLOSED_FORM_OFFSET = 150_000
+
+
 @wp.func
-def square_prefix(t: wp.int64) -> wp.int64:
-    """``sum_{m=1}^{t} m^2 = t (t+1) (2t+1) / 6`` (exact integer).
+def square_prefix(t: wp.float64) -> wp.float64:
+    """``sum_{m=1}^{t} m^2 = t (t+1) (2t+1) / 6`` for an integer-valued t.
 
     As a polynomial it satisfies ``Q(t) - Q(t-1) = t^2`` for every integer t, so
-    ``sum_{m=p}^{q} m^2 = Q(q) - Q(p-1)`` holds for negative offsets too. Exact in int64 for
-    ``|t| < 2^20``.
+    ``sum_{m=p}^{q} m^2 = Q(q) - Q(p-1)`` holds for negative offsets too. Exact in float64 for
+    ``|t| <= MAX_CLOSED_FORM_OFFSET`` (the product is an integer below 2^53 and divisible by 6);
+    float64 avoids the slow 64-bit integer division on GPUs.
     """
-    return t * (t + wp.int64(1)) * (wp.int64(2) * t + wp.int64(1)) // wp.int64(6)
+    return t * (t + wp.float64(1.0)) * (wp.float64(2.0) * t + wp.float64(1.0)) / wp.float64(6.0)
 
 
 @wp.func
 def sum_of_squares(p: int, q: int) -> wp.float64:
     """``sum_{m=p}^{q} m^2`` for integer offsets p <= q + 1 (0 for an empty range)."""
-    return wp.float64(square_prefix(wp.int64(q)) - square_prefix(wp.int64(p) - wp.int64(1)))
+    return square_prefix(wp.float64(q)) - square_prefix(wp.float64(p - 1))
 
 
 @wp.func

@@ -32,8 +32,9 @@ from .common import (
     tree_stack,
 )
 
-#: Nodes are pushed as ``index * LEVEL_CODE + level``.
-LEVEL_CODE = wp.constant(32)
+#: Nodes are pushed as ``(index << LEVEL_BITS) | level`` (levels < 32).
+LEVEL_BITS = wp.constant(5)
+LEVEL_MASK = wp.constant(31)
 
 
 @wp.func
@@ -63,13 +64,13 @@ def band_sum(
     stack = tree_stack()
     top = int(0)
     for first_node in range(lo // size, hi // size + 1):
-        stack[top] = first_node * LEVEL_CODE + level
+        stack[top] = (first_node << LEVEL_BITS) | level
         top += 1
     while top > 0:
         top -= 1
         code = stack[top]
-        level = code % LEVEL_CODE
-        index = code // LEVEL_CODE
+        level = code & LEVEL_MASK
+        index = code >> LEVEL_BITS
         size = leaf_size << level
         i = wp.max(index * size, lo)
         j = wp.min(index * size + size, hi + 1)
@@ -89,8 +90,8 @@ def band_sum(
                     if level == 0:
                         acc += spring_sum(h, r, i, j, c, d, curvature)
                     else:
-                        stack[top] = (2 * index) * LEVEL_CODE + level - 1
-                        stack[top + 1] = (2 * index + 1) * LEVEL_CODE + level - 1
+                        stack[top] = ((2 * index) << LEVEL_BITS) | (level - 1)
+                        stack[top + 1] = ((2 * index + 1) << LEVEL_BITS) | (level - 1)
                         top += 2
     return acc
 
