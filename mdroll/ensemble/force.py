@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..devices import device_of, resolve_device, to_warp, warp
+from ..devices import cupy_stream, cupy_view, device_of, is_cuda, resolve_device, to_warp, warp
 from ..kernels.common import MAX_CLOSED_FORM_OFFSET
 from ..params import ParameterError, Params
 
@@ -109,10 +109,21 @@ def _row_bounds(lines, device):
 
 
 def _prefix_sums(lines, device):
+    """``S[r, j] = sum_{i<j} h[r, i]`` (eq 18): Warp's blocked scan on the CPU, CUB's device scan
+    (``cupy.cumsum``, float64) on CUDA, where a per-thread sequential scan cannot coalesce."""
     from ..kernels.lines import ROW_BLOCK, block_prefix, block_sums, scan_block_sums
 
     wp = warp()
     rows, n = lines.shape
+    if is_cuda(device):
+        import cupy
+
+        prefix = wp.empty((rows, n + 1), dtype=wp.float64, device=device)
+        with cupy_stream(device):
+            view = cupy_view(prefix)
+            view[:, 0] = 0.0
+            cupy.cumsum(cupy_view(lines), axis=1, out=view[:, 1:])
+        return prefix
     n_blocks = -(-n // ROW_BLOCK)
     sums = wp.empty((rows, n_blocks), dtype=wp.float64, device=device)
     offsets = wp.empty((rows, n_blocks), dtype=wp.float64, device=device)
@@ -207,7 +218,8 @@ def launch_force(prepared: PreparedLines, params: Params, algorithm: str, d: flo
 
     ``out``: a preallocated (R, steps) float64 array to write into.
     """
-    from ..kernels.direct import BLOCK, contact_force_direct
+    from ..kernels.common import BLOCK
+    from ..kernels.direct import contact_force_direct
     from ..kernels.edge import contact_force_edge
     from ..kernels.tree import contact_force_tree
 
@@ -222,9 +234,10 @@ def launch_force(prepared: PreparedLines, params: Params, algorithm: str, d: flo
         kernel = contact_force_direct
         dim = (rows, -(-p.steps // BLOCK))
     elif algorithm == "tree":
-        inputs = [p.lines, p.prefix, p.tree, p.level_offsets, p.top_level, p.leaf_size, p.n_work, p.first, d,
-                  curvature, params.k_spring, force]
+        inputs = [p.lines, p.prefix, p.tree, p.level_offsets, p.top_level, p.leaf_size, p.n_work, p.first, p.steps,
+                  d, curvature, params.k_spring, force]
         kernel = contact_force_tree
+        dim = (rows, -(-p.steps // BLOCK))
     else:
         inputs = [p.prefix, p.first, d, params.dx, params.R, params.E_star, force]
         kernel = contact_force_edge

@@ -112,3 +112,42 @@ def reach_strict(level: wp.float64, curvature: wp.float64) -> int:
     while curvature * wp.float64(m + 1) * wp.float64(m + 1) < level:
         m += 1
     return m
+
+
+#: Steps per thread in the blocked kernels, and offsets per block: for each block of 8 offsets a
+#: thread loads the 15 heights that its 64 (step, offset) pairs need once, into registers.
+BLOCK = wp.constant(8)
+BLOCK_HEIGHTS = wp.constant(15)
+block_values = wp.types.vector(length=8, dtype=wp.float64)
+block_heights = wp.types.vector(length=15, dtype=wp.float64)
+
+
+@wp.func
+def blocked_spring_sum(
+    row: wp.array(dtype=wp.float64),
+    c: int,
+    first_offset: int,
+    blocks: int,
+    d: wp.float64,
+    curvature: wp.float64,
+    acc: block_values,
+) -> block_values:
+    """Add ``sum_m max(h_{c+j+m} + d - curvature m^2, 0)`` to ``acc[j]`` for the 8 steps j = 0..7,
+    over the offsets ``m = first_offset .. first_offset + 8 blocks - 1`` (eq 10-12).
+
+    The caller guarantees that every spring read lies on the row.
+    """
+    zero = wp.float64(0.0)
+    for b in range(blocks):
+        m0 = first_offset + b * BLOCK
+        heights = block_heights()
+        for i in range(BLOCK_HEIGHTS):
+            heights[i] = row[c + m0 + i]
+        lift = block_values()
+        for k in range(BLOCK):
+            fm = wp.float64(m0 + k)
+            lift[k] = d - curvature * fm * fm
+        for j in range(BLOCK):
+            for k in range(BLOCK):
+                acc[j] = acc[j] + wp.max(heights[j + k] + lift[k], zero)
+    return acc

@@ -7,7 +7,7 @@ contributes ``max(h_l + d - curvature (l - c)^2, 0)`` (eq 10-12); springs off th
 
 import warp as wp
 
-from .common import reach_inclusive, spring_sum
+from .common import BLOCK, block_values, blocked_spring_sum, reach_inclusive, spring_sum
 
 
 @wp.func
@@ -25,14 +25,6 @@ def force_direct(
     if window < 0:
         return wp.float64(0.0)
     return spring_sum(h, r, wp.max(c - window, 0), wp.min(c + window + 1, n), c, d, curvature)
-
-
-#: Steps per thread and offsets per block: a thread computes 8 consecutive steps, and for each
-#: block of 8 offsets loads the 15 heights those 64 (step, offset) pairs need once, into registers.
-BLOCK = wp.constant(8)
-WINDOW = wp.constant(15)
-block_values = wp.types.vector(length=8, dtype=wp.float64)
-window_values = wp.types.vector(length=15, dtype=wp.float64)
 
 
 @wp.kernel
@@ -62,21 +54,7 @@ def contact_force_direct(
     reach_last = -window + blocks * BLOCK - 1 + BLOCK - 1
     if window >= 0 and base + BLOCK <= steps and c - window >= 0 and c + reach_last < n:
         # every spring the 8 steps read lies on the line: no checks in the inner loops
-        zero = wp.float64(0.0)
-        acc = block_values()
-        row = h[r]
-        for b in range(blocks):
-            m0 = -window + b * BLOCK
-            heights = window_values()
-            for i in range(WINDOW):
-                heights[i] = row[c + m0 + i]
-            lift = block_values()
-            for k in range(BLOCK):
-                fm = wp.float64(m0 + k)
-                lift[k] = d - curvature * fm * fm
-            for j in range(BLOCK):
-                for k in range(BLOCK):
-                    acc[j] = acc[j] + wp.max(heights[j + k] + lift[k], zero)
+        acc = blocked_spring_sum(h[r], c, -window, blocks, d, curvature, block_values())
         for j in range(BLOCK):
             force[r, base + j] = k_spring * acc[j]
     else:

@@ -17,6 +17,13 @@ the band, as
 - *no contact* (indenter above the node's max h everywhere on the node): nothing;
 - *ambiguous*: split into the two children, or summed spring by spring at a leaf.
 
+On the GPU the per-step traversal diverges across a warp, so the kernel's main path works on 8
+consecutive steps per thread instead: two range queries on the tree give (min h, max h) over
+the springs that the 8 steps' right and left bands can reach; from those local bounds each side
+gets its own, narrower core (closed form per step) and window, and the few springs left in
+between are summed by the same register-blocked loop as the direct sum. Threads whose springs
+are not all on the line (the ends of an open line) take the per-step traversal. Both are exact.
+
 Stack bound: a band starts with at most 2 nodes on the stack, and each descent pops one node and
 pushes two, so the stack never holds more than ``2 + start level <= 2 + top level`` entries; the
 launcher checks ``2 + top level <= TREE_STACK_CAPACITY`` before launch.
@@ -25,6 +32,9 @@ launcher checks ``2 + top level <= TREE_STACK_CAPACITY`` before launch.
 import warp as wp
 
 from .common import (
+    BLOCK,
+    block_values,
+    blocked_spring_sum,
     full_contact_sum,
     reach_inclusive,
     reach_strict,
@@ -128,6 +138,42 @@ def force_tree(
     return acc
 
 
+@wp.func
+def range_bounds(
+    tree: wp.array2d(dtype=wp.vec2d),
+    level_offsets: wp.array(dtype=int),
+    leaf_size: int,
+    r: int,
+    lo: int,
+    hi: int,
+) -> wp.vec2d:
+    """(min h, max h) valid for springs lo..hi: exact over the whole leaves that cover them.
+
+    The iterative segment-tree query: at most two nodes per level.
+    """
+    a = lo // leaf_size
+    b = hi // leaf_size
+    box = tree[r, a]
+    low = box[0]
+    high = box[1]
+    level = int(0)
+    while a <= b:
+        if (a & 1) == 1:
+            node = tree[r, level_offsets[level] + a]
+            low = wp.min(low, node[0])
+            high = wp.max(high, node[1])
+            a += 1
+        if (b & 1) == 0:
+            node = tree[r, level_offsets[level] + b]
+            low = wp.min(low, node[0])
+            high = wp.max(high, node[1])
+            b -= 1
+        a = a >> 1
+        b = b >> 1
+        level += 1
+    return wp.vec2d(low, high)
+
+
 @wp.kernel
 def contact_force_tree(
     h: wp.array2d(dtype=wp.float64),
@@ -138,13 +184,46 @@ def contact_force_tree(
     leaf_size: int,
     n: int,
     first: int,
+    steps: int,
     d: wp.float64,
     curvature: wp.float64,
     k_spring: wp.float64,
     force: wp.array2d(dtype=wp.float64),
 ):
-    """``force[r, s]`` (N): wheel at spring ``first + s`` of row r, indentation d (m)."""
-    r, s = wp.tid()
-    force[r, s] = k_spring * force_tree(
-        h, prefix, tree, level_offsets, top_level, leaf_size, r, n, first + s, d, curvature
-    )
+    """``force[r, s]`` (N): wheel at spring ``first + s`` of row r, indentation d (m).
+
+    Launched over ``(R, ceil(steps / 8))``; thread t computes steps 8t .. 8t+7.
+    """
+    r, t = wp.tid()
+    base = t * BLOCK
+    c = first + base
+    root = tree[r, level_offsets[top_level]]
+    outer = reach_inclusive(d + root[1], curvature)
+    core = reach_strict(d + root[0], curvature)
+    if core >= 0 and base + BLOCK <= steps and c - outer - BLOCK >= 0 and c + outer + 3 * BLOCK < n:
+        # local bounds over the springs the 8 steps' bands can reach, right and left
+        right = range_bounds(tree, level_offsets, leaf_size, r, c + core + 1, c + BLOCK - 1 + outer)
+        left = range_bounds(tree, level_offsets, leaf_size, r, c - outer, c + BLOCK - 1 - core - 1)
+        core_right = wp.max(core, reach_strict(d + right[0], curvature))
+        outer_right = wp.min(outer, reach_inclusive(d + right[1], curvature))
+        core_left = wp.max(core, reach_strict(d + left[0], curvature))
+        outer_left = wp.min(outer, reach_inclusive(d + left[1], curvature))
+        acc = block_values()
+        for j in range(BLOCK):
+            acc[j] = full_contact_sum(prefix, r, c + j - core_left, c + j + core_right + 1, c + j, d, curvature)
+        # bands, padded on their outer side only: padded offsets lie beyond the local window
+        # (or beyond the global one), where u < 0 exactly
+        row = h[r]
+        right_blocks = (outer_right - core_right + BLOCK - 1) // BLOCK
+        acc = blocked_spring_sum(row, c, core_right + 1, right_blocks, d, curvature, acc)
+        left_blocks = (outer_left - core_left + BLOCK - 1) // BLOCK
+        acc = blocked_spring_sum(row, c, -core_left - left_blocks * BLOCK, left_blocks, d, curvature, acc)
+        for j in range(BLOCK):
+            force[r, base + j] = k_spring * acc[j]
+    else:
+        for j in range(BLOCK):
+            s = base + j
+            if s < steps:
+                force[r, s] = k_spring * force_tree(
+                    h, prefix, tree, level_offsets, top_level, leaf_size, r, n, first + s, d, curvature
+                )
