@@ -8,6 +8,7 @@ wheel's dynamics (section 5) and ensemble-averaged spectra (section 6). All unit
 from .devices import DeviceError, available_devices
 from .ensemble.force import ALGORITHMS, BOUNDARIES, contact_force, step_range
 from .ensemble.lines import rough_lines
+from .ensemble.pipeline import EnsembleResult, run_ensemble
 from .params import ParameterError, Params
 
 __version__ = "0.1.0"
@@ -16,11 +17,13 @@ __all__ = [
     "ALGORITHMS",
     "BOUNDARIES",
     "DeviceError",
+    "EnsembleResult",
     "ParameterError",
     "Params",
     "available_devices",
     "contact_force",
     "rough_lines",
+    "run_ensemble",
     "step_range",
     "__version__",
 ]

@@ -1,0 +1,166 @@
+"""Command line: ``mdroll params`` and ``mdroll run`` (also ``python -m mdroll ...``).
+
+Usage errors print one line on stderr, no traceback, and exit with code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import datetime
+import json
+import sys
+import tomllib
+from pathlib import Path
+
+from .params import Params
+
+PRESETS = {
+    # a small ensemble that finishes in seconds on a laptop CPU
+    "quick": {"L": 0.2, "n_real": 8},
+}
+
+
+class UsageError(Exception):
+    """Bad command-line input: reported in one line, exit code 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, exit 2, no usage dump
+        raise UsageError(message)
+
+
+def _parse_value(key: str, text: str):
+    field_types = {f.name: f.type for f in dataclasses.fields(Params)}
+    if key not in field_types:
+        raise UsageError(f"unknown parameter {key!r}; valid ones are: {', '.join(field_types)}")
+    try:
+        if key == "n_real":
+            return int(text)
+        return float(text)
+    except ValueError as exc:
+        raise UsageError(f"--set {key}={text}: not a number ({exc})") from None
+
+
+def load_config(path: str) -> dict:
+    """Parameters from a TOML file: top-level keys or a [params] table; unknown keys are errors."""
+    file = Path(path)
+    if not file.is_file():
+        raise UsageError(f"config file {path!r} does not exist")
+    try:
+        data = tomllib.loads(file.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise UsageError(f"config file {path}: {exc}") from None
+    data = data.get("params", data)
+    valid = {f.name for f in dataclasses.fields(Params)}
+    unknown = sorted(set(data) - valid)
+    if unknown:
+        raise UsageError(f"config file {path}: unknown parameter(s) {unknown}; valid ones are: {', '.join(sorted(valid))}")
+    return data
+
+
+def build_params(args) -> Params:
+    values: dict = {}
+    if getattr(args, "preset", None):
+        values.update(PRESETS[args.preset])
+    if getattr(args, "config", None):
+        values.update(load_config(args.config))
+    for item in getattr(args, "set", None) or []:
+        if "=" not in item:
+            raise UsageError(f"--set expects key=value, got {item!r}")
+        key, text = item.split("=", 1)
+        values[key.strip()] = _parse_value(key.strip(), text.strip())
+    if getattr(args, "realizations", None) is not None:
+        values["n_real"] = args.realizations
+    return Params(**values)
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="mdroll", description="MDR rolling contact on rough rails: ensembles, forces, spectra.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    def common(p):
+        p.add_argument("--config", metavar="FILE.toml", help="parameters from a TOML file")
+        p.add_argument("--set", action="append", metavar="KEY=VALUE", help="set one parameter (repeatable), SI units")
+        p.add_argument("--preset", choices=sorted(PRESETS), help="quick: L = 0.2 m, 8 realizations")
+
+    p_params = sub.add_parser("params", help="print every parameter and derived quantity with units")
+    common(p_params)
+
+    p_run = sub.add_parser("run", help="run an ensemble and write spectra, summary and plots")
+    common(p_run)
+    p_run.add_argument("--realizations", type=int, help="number of realizations (default n_real = 300)")
+    p_run.add_argument("--seed", type=int, default=0)
+    p_run.add_argument("--algorithm", choices=["tree", "direct", "edge"], default="tree")
+    p_run.add_argument("--mode", choices=["decoupled", "coupled"], default="decoupled")
+    p_run.add_argument("--boundary", choices=["open", "periodic"], default="open")
+    p_run.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
+    p_run.add_argument("--batch", type=int, help="realizations per batch (default: from free memory)")
+    p_run.add_argument("--window", action="store_true", help="Hann window before the FFT")
+    p_run.add_argument("--out", help="output directory (default mdroll-out/<timestamp>)")
+    p_run.add_argument("--force", action="store_true", help="write into an existing output directory")
+    p_run.add_argument("--no-progress", action="store_true")
+    return parser
+
+
+def _fmt(value) -> str:
+    return f"{value:.6g}" if isinstance(value, float) else str(value)
+
+
+def cmd_params(args) -> int:
+    p = build_params(args)
+    units = {"E": "Pa", "nu": "-", "R": "m", "m": "kg", "F_N": "N", "v0": "m/s", "L": "m", "dx": "m", "h0": "m",
+             "H": "-", "q_min": "rad/m", "q_max": "rad/m", "n_real": "-"}
+    print("parameters")
+    for key, value in p.as_dict().items():
+        print(f"  {key:<10} {_fmt(value):>14}  {units[key]}")
+    print("derived")
+    for key, (value, unit, text) in p.derived().items():
+        print(f"  {key:<18} {_fmt(value):>14}  {unit:<9} {text}")
+    return 0
+
+
+def cmd_run(args) -> int:
+    from .devices import resolve_device
+    from .ensemble.pipeline import result_summary, run_ensemble
+
+    params = build_params(args)
+    device = resolve_device(args.device)
+    out = Path(args.out or Path("mdroll-out") / datetime.datetime.now().strftime("%Y%m%d-%H%M%S"))
+    if out.exists() and any(out.iterdir()) and not args.force:
+        raise UsageError(f"output directory {str(out)!r} exists and is not empty; use --force to write into it")
+    out.mkdir(parents=True, exist_ok=True)
+    result = run_ensemble(params, seed=args.seed, algorithm=args.algorithm, mode=args.mode, boundary=args.boundary,
+                          device=device, batch=args.batch, progress=not args.no_progress, window=args.window)
+    result.save(out / "spectra.npz")
+    summary = result_summary(result)
+    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    result.plot("accel", out / "accel_psd.png")
+    result.plot("force", out / "force_psd.png")
+
+    print(f"\n{result.n_real} realizations x {result.steps} steps, {result.algorithm}, {result.mode}, "
+          f"{result.boundary} boundary, device {result.device}")
+    rows = [(k, _fmt(v["value"]), v["unit"]) for k, v in summary["derived"].items()]
+    rows += [("force mean", _fmt(result.force_mean), "N"), ("force RMS", _fmt(result.force_rms), "N"),
+             ("contact lost", str(result.contact_lost_steps), "steps")]
+    rows += [(f"time {k}", f"{v:.3f}", "s") for k, v in result.timings.items()]
+    for name, value, unit in rows:
+        print(f"  {name:<20} {value:>14}  {unit}")
+    print(f"wrote {out}/: spectra.npz summary.json accel_psd.png force_psd.png")
+    return 0
+
+
+def main(argv=None) -> int:
+    try:
+        args = _parser().parse_args(argv)
+        return {"params": cmd_params, "run": cmd_run}[args.command](args)
+    except UsageError as exc:
+        print(f"mdroll: error: {exc}", file=sys.stderr)
+        return 2
+    except ValueError as exc:  # ParameterError, DeviceError: bad values, named in the message
+        print(f"mdroll: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("mdroll: interrupted", file=sys.stderr)
+        return 130
+

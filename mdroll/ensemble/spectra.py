@@ -1,0 +1,89 @@
+"""Power spectral densities of force and acceleration series, and their running ensemble moments.
+
+Convention (physics.md sections 3 and 6): for a series F_s at x_s = s dx, s = 0..N-1, of length
+L = N dx, ``B(q_k) = (1/N) sum_s (F_s - mean F) w_s exp(-i q_k x_s)`` and the two-sided PSD
+``C(q_k) = L / (2 pi) |B(q_k)|^2`` at ``q_k = 2 pi k / L`` (rad/m), k = 0..N/2. The frequency
+form is ``C(omega) = C(q) / v0`` at ``omega = q v0``. ``w`` is 1 (default) or a Hann window
+scaled to mean(w^2) = 1, which keeps the total power.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..devices import cupy_stream, cupy_view, is_cuda
+from .fft import rfft_rows
+
+
+def wavenumbers(steps: int, dx: float) -> np.ndarray:
+    """``q_k = 2 pi k / (N dx)`` (rad/m) for k = 0..N/2."""
+    return 2.0 * math.pi * np.arange(steps // 2 + 1) / (steps * dx)
+
+
+def _hann(steps: int, xp):
+    w = 0.5 - 0.5 * xp.cos(2.0 * math.pi * xp.arange(steps) / steps)
+    return w / xp.sqrt(xp.mean(w * w))
+
+
+def psd_rows(series, dx: float, device: str, window: bool = False):
+    """Two-sided PSD of each row of ``series`` (R, N), in (unit^2 m); NumPy on the CPU, CuPy on CUDA."""
+    if is_cuda(device):
+        import cupy as xp
+
+        with cupy_stream(device):
+            x = cupy_view(series)
+            x = x - x.mean(axis=1, keepdims=True)
+            if window:
+                x = x * _hann(x.shape[1], xp)
+            spectrum = rfft_rows(x, device)
+            n = x.shape[1]
+            return (n * dx / (2.0 * math.pi)) * (xp.abs(spectrum) / n) ** 2
+    x = np.asarray(series.numpy() if hasattr(series, "numpy") else series)
+    x = x - x.mean(axis=1, keepdims=True)
+    if window:
+        x = x * _hann(x.shape[1], np)
+    n = x.shape[1]
+    return (n * dx / (2.0 * math.pi)) * (np.abs(rfft_rows(x, device)) / n) ** 2
+
+
+class RunningMoments:
+    """Per-bin count, mean and sum of squared deviations, merged batch by batch (Chan et al.).
+
+    Memory is one row of bins whatever the number of realizations.
+    """
+
+    def __init__(self, bins: int):
+        self.count = 0
+        self.mean = np.zeros(bins)
+        self.m2 = np.zeros(bins)
+
+    def add(self, rows: np.ndarray) -> None:
+        rows = np.asarray(rows, dtype=np.float64)
+        n_b = rows.shape[0]
+        mean_b = rows.mean(axis=0)
+        m2_b = ((rows - mean_b) ** 2).sum(axis=0)
+        total = self.count + n_b
+        delta = mean_b - self.mean
+        self.mean = self.mean + delta * (n_b / total)
+        self.m2 = self.m2 + m2_b + delta**2 * (self.count * n_b / total)
+        self.count = total
+
+    @property
+    def stderr(self) -> np.ndarray:
+        """Standard error of the mean per bin (0 with fewer than two samples)."""
+        if self.count < 2:
+            return np.zeros_like(self.mean)
+        return np.sqrt(self.m2 / (self.count - 1) / self.count)
+
+    def state(self) -> dict:
+        return {"count": self.count, "mean": self.mean, "m2": self.m2}
+
+    @classmethod
+    def from_state(cls, state: dict) -> "RunningMoments":
+        moments = cls(len(state["mean"]))
+        moments.count = int(state["count"])
+        moments.mean = np.array(state["mean"], dtype=np.float64)
+        moments.m2 = np.array(state["m2"], dtype=np.float64)
+        return moments

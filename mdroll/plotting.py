@@ -1,0 +1,60 @@
+"""Plots of ensemble spectra (matplotlib, Agg backend: no display needed)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .validation import formulas
+
+
+def plot_psd(result, quantity: str = "accel", path=None, ax=None):
+    """Log-log ensemble-mean PSD on omega (rad/s) with a +-1 standard-error band, annotated with
+    omega_0 (section 4.2), q_min v0 (eq 21), the q^-(2H+3) slope (eq 23) and eq 40 (force; for the
+    acceleration, eq 40 through the linearized wheel response). PSDs per rad/s: C(omega) = C(q)/v0."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if quantity not in ("accel", "force"):
+        raise ValueError(f"quantity = {quantity!r} is not allowed: choose 'accel' or 'force'")
+    p = result.params
+    omega = result.omega[1:]
+    q = result.q[1:]
+    mean = getattr(result, f"{quantity}_psd")[1:] / p.v0
+    err = getattr(result, f"{quantity}_psd_stderr")[1:] / p.v0
+    theory = formulas.force_psd_high_band(p, q) / p.v0
+    if quantity == "accel":
+        theory = theory * formulas.acceleration_transfer(p, omega)
+    unit = "N$^2$ s/rad" if quantity == "force" else "(m/s$^2$)$^2$ s/rad"
+    label = "force" if quantity == "force" else "acceleration"
+
+    own = ax is None
+    if own:
+        fig, ax = plt.subplots(figsize=(8, 5), dpi=120)
+    ax.fill_between(omega, np.maximum(mean - err, mean * 1e-3), mean + err, color="C0", alpha=0.3, lw=0)
+    ax.loglog(omega, mean, color="C0", lw=0.6, label=f"ensemble mean ({result.n_real} realizations, {result.algorithm}, {result.mode})")
+    positive = theory > 0
+    ax.loglog(omega[positive], theory[positive], color="C3", lw=0.6, alpha=0.8, label="eq 40")
+    omega_0 = formulas.resonance_frequency(p)
+    omega_t = formulas.transition_frequency(p)
+    ax.axvline(omega_0, color="k", ls="--", lw=0.8)
+    ax.text(omega_0, ax.get_ylim()[1], r" $\omega_0$", va="top")
+    ax.axvline(omega_t, color="0.4", ls=":", lw=0.8)
+    ax.text(omega_t, ax.get_ylim()[1], r" $q_{min} v_0$", va="top", color="0.4")
+    # slope guide q^-(2H+3), anchored to the mean at 2 q_min
+    anchor = np.argmin(np.abs(q - 2 * p.q_min))
+    guide = omega[anchor:anchor + max(2, len(omega) // 4)]
+    slope = formulas.power_law_exponent(p)
+    ax.loglog(guide, 3 * mean[anchor] * (guide / guide[0]) ** slope, color="C2", lw=1.2, label=f"$q^{{{slope:.1f}}}$ (eq 23)")
+    ax.set_xlabel(r"$\omega$ (rad/s)")
+    ax.set_ylabel(f"{label} PSD $C(\\omega)$ ({unit})")
+    ax.set_title(f"{label} spectrum: H = {p.H}, h0 = {p.h0 * 1e6:g} um, L = {p.length:g} m, {result.boundary} boundary")
+    ax.legend(loc="lower left", fontsize=8)
+    if own:
+        fig.tight_layout()
+        if path is not None:
+            fig.savefig(path)
+            plt.close(fig)
+        return fig
+    return ax
