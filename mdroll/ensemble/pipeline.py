@@ -13,7 +13,7 @@ from ..devices import resolve_device, synchronize, warp
 from ..params import ParameterError, Params
 from .force import ALGORITHMS, BOUNDARIES, check_choice, launch_force, prepare_lines
 from .lines import check_seed, realization_indices, rough_lines
-from .spectra import RunningMoments, psd_rows, wavenumbers
+from .spectra import RunningMoments, array_module, psd_rows, to_host, wavenumbers
 
 MODES = ("decoupled", "coupled")
 #: The open-boundary wheel range of an ensemble is set from d0 + H_BOUND_SIGMAS * h0, not from
@@ -118,12 +118,22 @@ def _host_available_bytes() -> int:
     return 4 * 2**30
 
 
-def _check_finite(array, what: str, stage: str, indices: np.ndarray) -> None:
-    values = array.numpy() if hasattr(array, "numpy") else (array.get() if hasattr(array, "get") else np.asarray(array))
-    bad = ~np.isfinite(values)
-    if bad.any():
-        row = int(np.argwhere(bad)[0][0])
+def _check_finite(values, what: str, stage: str, indices: np.ndarray) -> None:
+    """Raise NonFiniteError naming the first realization whose row holds NaN or infinity."""
+    xp = array_module(values)
+    finite_rows = xp.isfinite(values).all(axis=1)
+    if not bool(finite_rows.all()):
+        row = int(np.argmin(to_host(finite_rows)))
         raise NonFiniteError(f"{what} is not finite in realization {int(indices[row])} at stage {stage!r}")
+
+
+def _rows(array, device: str):
+    """A NumPy (CPU) or CuPy (CUDA) view of a Warp array."""
+    if device.startswith("cuda"):
+        from ..devices import cupy_view
+
+        return cupy_view(array)
+    return array.numpy()
 
 
 def run_ensemble(
@@ -190,19 +200,19 @@ def run_ensemble(
         else:
             force, accel, lost = stage("response", lambda: coupled_series(prepared, params, algorithm, device))
             lost_total += lost
-        _check_finite(force, "force", "force" if mode == "decoupled" else "response", idx)
-        force_psd = stage("spectra", lambda: _host(psd_rows(force, params.dx, device, window)))
-        accel_psd = stage("spectra", lambda: _host(psd_rows(accel, params.dx, device, window)))
+        force_rows = _rows(force, device)
+        _check_finite(force_rows, "force", "force" if mode == "decoupled" else "response", idx)
+        force_psd = stage("spectra", lambda: psd_rows(force, params.dx, device, window))
+        accel_psd = stage("spectra", lambda: psd_rows(accel, params.dx, device, window))
         _check_finite(force_psd, "force PSD", "spectra", idx)
         _check_finite(accel_psd, "acceleration PSD", "spectra", idx)
         if force_moments is None:
-            force_moments = RunningMoments(force_psd.shape[1])
-            accel_moments = RunningMoments(accel_psd.shape[1])
-        force_moments.add(force_psd)
-        accel_moments.add(accel_psd)
-        f_host = force.numpy()
-        force_mean_sum += float(f_host.mean(axis=1).sum())
-        force_rms_sum += float(f_host.std(axis=1).sum())
+            xp = array_module(force_psd)
+            force_moments = RunningMoments(force_psd.shape[1], xp)
+            accel_moments = RunningMoments(accel_psd.shape[1], xp)
+        stage("spectra", lambda: (force_moments.add(force_psd), accel_moments.add(accel_psd)))
+        force_mean_sum += float(force_rows.mean(axis=1).sum())
+        force_rms_sum += float(force_rows.std(axis=1).sum())
         bar.update(len(idx))
         del lines, prepared, force, accel
     bar.close()
@@ -216,10 +226,6 @@ def run_ensemble(
         device=device, steps=steps, force_mean=force_mean_sum / len(indices), force_rms=force_rms_sum / len(indices),
         contact_lost_steps=lost_total, timings=timings,
     )
-
-
-def _host(array) -> np.ndarray:
-    return array.get() if hasattr(array, "get") else np.asarray(array)
 
 
 def _decoupled(force, params: Params, device: str):

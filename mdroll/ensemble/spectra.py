@@ -48,26 +48,48 @@ def psd_rows(series, dx: float, device: str, window: bool = False):
     return (n * dx / (2.0 * math.pi)) * (np.abs(rfft_rows(x, device)) / n) ** 2
 
 
+def array_module(array):
+    """``cupy`` for a CuPy array, else ``numpy``."""
+    return __import__("cupy") if type(array).__module__.startswith("cupy") else np
+
+
+def to_host(array) -> np.ndarray:
+    """A NumPy array from a NumPy, CuPy or Warp array."""
+    if hasattr(array, "get"):
+        return array.get()
+    if hasattr(array, "numpy"):
+        return array.numpy()
+    return np.asarray(array)
+
+
 class RunningMoments:
     """Per-bin count, mean and sum of squared deviations, merged batch by batch (Chan et al.).
 
-    Memory is one row of bins whatever the number of realizations.
+    Memory is one row of bins whatever the number of realizations; the rows stay on the device
+    they come from (NumPy or CuPy), and ``mean`` / ``stderr`` are returned on the host.
     """
 
-    def __init__(self, bins: int):
+    def __init__(self, bins: int, xp=np):
         self.count = 0
-        self.mean = np.zeros(bins)
-        self.m2 = np.zeros(bins)
+        self._mean = xp.zeros(bins)
+        self._m2 = xp.zeros(bins)
 
-    def add(self, rows: np.ndarray) -> None:
-        rows = np.asarray(rows, dtype=np.float64)
+    @property
+    def mean(self) -> np.ndarray:
+        return to_host(self._mean)
+
+    @property
+    def m2(self) -> np.ndarray:
+        return to_host(self._m2)
+
+    def add(self, rows) -> None:
         n_b = rows.shape[0]
         mean_b = rows.mean(axis=0)
         m2_b = ((rows - mean_b) ** 2).sum(axis=0)
         total = self.count + n_b
-        delta = mean_b - self.mean
-        self.mean = self.mean + delta * (n_b / total)
-        self.m2 = self.m2 + m2_b + delta**2 * (self.count * n_b / total)
+        delta = mean_b - self._mean
+        self._mean = self._mean + delta * (n_b / total)
+        self._m2 = self._m2 + m2_b + delta**2 * (self.count * n_b / total)
         self.count = total
 
     @property
@@ -84,6 +106,6 @@ class RunningMoments:
     def from_state(cls, state: dict) -> "RunningMoments":
         moments = cls(len(state["mean"]))
         moments.count = int(state["count"])
-        moments.mean = np.array(state["mean"], dtype=np.float64)
-        moments.m2 = np.array(state["m2"], dtype=np.float64)
+        moments._mean = np.array(state["mean"], dtype=np.float64)
+        moments._m2 = np.array(state["m2"], dtype=np.float64)
         return moments
