@@ -96,14 +96,14 @@ class PreparedLines:
 
 
 def _row_bounds(lines, device):
-    from ..kernels.lines import ROW_BLOCK, block_min_max, row_min_max
+    from ..kernels.lines import ROW_BLOCK, row_min_max, segment_min_max
 
     wp = warp()
     rows, n = lines.shape
     n_blocks = -(-n // ROW_BLOCK)
     partial = wp.empty((rows, n_blocks), dtype=wp.vec2d, device=device)
     bounds = wp.empty(rows, dtype=wp.vec2d, device=device)
-    wp.launch(block_min_max, dim=(rows, n_blocks), inputs=[lines, n, partial], device=device)
+    wp.launch(segment_min_max, dim=(rows, n_blocks), inputs=[lines, n, ROW_BLOCK, partial], device=device)
     wp.launch(row_min_max, dim=rows, inputs=[partial, n_blocks, bounds], device=device)
     return bounds
 
@@ -144,7 +144,7 @@ def tree_levels(n: int, leaf_size: int) -> list[int]:
 
 def _min_max_tree(lines, leaf_size: int, device):
     from ..kernels.common import TREE_STACK_CAPACITY
-    from ..kernels.lines import tree_leaves, tree_parents
+    from ..kernels.lines import segment_min_max, tree_parents
 
     wp = warp()
     rows, n = lines.shape
@@ -158,7 +158,7 @@ def _min_max_tree(lines, leaf_size: int, device):
         )
     offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
     tree = wp.empty((rows, int(offsets[-1])), dtype=wp.vec2d, device=device)
-    wp.launch(tree_leaves, dim=(rows, counts[0]), inputs=[lines, n, leaf_size, tree], device=device)
+    wp.launch(segment_min_max, dim=(rows, counts[0]), inputs=[lines, n, leaf_size, tree], device=device)
     for level in range(1, len(counts)):
         wp.launch(
             tree_parents,

@@ -64,20 +64,6 @@ def random_phase_spectrum(
 
 
 @wp.kernel
-def block_min_max(h: wp.array2d(dtype=wp.float64), n: int, partial: wp.array2d(dtype=wp.vec2d)):
-    """Min and max of h over each block of ROW_BLOCK springs of each row."""
-    r, b = wp.tid()
-    start = b * ROW_BLOCK
-    end = wp.min(start + ROW_BLOCK, n)
-    lo = h[r, start]
-    hi = lo
-    for i in range(start + 1, end):
-        lo = wp.min(lo, h[r, i])
-        hi = wp.max(hi, h[r, i])
-    partial[r, b] = wp.vec2d(lo, hi)
-
-
-@wp.kernel
 def row_min_max(partial: wp.array2d(dtype=wp.vec2d), n_blocks: int, bounds: wp.array(dtype=wp.vec2d)):
     """Min and max of each row from its block partials: ``bounds[r] = (min h, max h)``."""
     r = wp.tid()
@@ -133,17 +119,18 @@ def block_prefix(
 
 
 @wp.kernel
-def tree_leaves(h: wp.array2d(dtype=wp.float64), n: int, leaf_size: int, tree: wp.array2d(dtype=wp.vec2d)):
-    """Level 0 of the implicit min/max tree: (min h, max h) of each leaf of ``leaf_size`` springs."""
+def segment_min_max(h: wp.array2d(dtype=wp.float64), n: int, segment: int, out: wp.array2d(dtype=wp.vec2d)):
+    """(min h, max h) of each segment of ``segment`` springs of each row: the leaves of the
+    min/max tree, or the partials of the row bounds."""
     r, j = wp.tid()
-    start = j * leaf_size
-    end = wp.min(start + leaf_size, n)
+    start = j * segment
+    end = wp.min(start + segment, n)
     lo = h[r, start]
     hi = lo
     for i in range(start + 1, end):
         lo = wp.min(lo, h[r, i])
         hi = wp.max(hi, h[r, i])
-    tree[r, j] = wp.vec2d(lo, hi)
+    out[r, j] = wp.vec2d(lo, hi)
 
 
 @wp.kernel
