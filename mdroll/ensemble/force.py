@@ -203,7 +203,8 @@ def prepare_lines(
     if algorithm in ("tree", "edge"):
         prepared.prefix = _prefix_sums(work, device)
     if algorithm == "tree":
-        window = reach(d + h_max, params.dx**2 / params.R)
+        # each line's window comes from its own maximum (the kernels read ``bounds``), not h_max
+        window = reach(d + float(bounds.numpy()[:, 1].max()), params.dx**2 / params.R)
         if window > MAX_CLOSED_FORM_OFFSET:
             raise ParameterError(
                 f"dx = {params.dx!r} m is too fine for the tree: the contact window spans {window} springs a side, "
@@ -228,19 +229,19 @@ def launch_force(prepared: PreparedLines, params: Params, algorithm: str, d: flo
     force = out if out is not None else wp.empty((rows, prepared.steps), dtype=wp.float64, device=device)
     curvature = params.dx**2 / params.R
     p = prepared
-    dim = force.shape
+    # direct and tree: one thread per BLOCK consecutive steps; edge: one per step
+    dim = (rows, -(-p.steps // BLOCK))
     if algorithm == "direct":
         inputs = [p.lines, p.bounds, p.n_work, p.first, p.steps, d, curvature, params.k_spring, force]
         kernel = contact_force_direct
-        dim = (rows, -(-p.steps // BLOCK))
     elif algorithm == "tree":
         inputs = [p.lines, p.prefix, p.tree, p.level_offsets, p.top_level, p.leaf_size, p.n_work, p.first, p.steps,
                   d, curvature, params.k_spring, force]
         kernel = contact_force_tree
-        dim = (rows, -(-p.steps // BLOCK))
     else:
         inputs = [p.prefix, p.first, d, params.dx, params.R, params.E_star, force]
         kernel = contact_force_edge
+        dim = force.shape
     wp.launch(kernel, dim=dim, inputs=inputs, device=device)
     return force
 
