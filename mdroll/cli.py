@@ -15,6 +15,7 @@ from pathlib import Path
 
 from .params import Params
 
+PARAM_NAMES = tuple(f.name for f in dataclasses.fields(Params))
 PRESETS = {
     # a small ensemble that finishes in seconds on a laptop CPU
     "quick": {"L": 0.2, "n_real": 8},
@@ -31,9 +32,8 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _parse_value(key: str, text: str):
-    field_types = {f.name: f.type for f in dataclasses.fields(Params)}
-    if key not in field_types:
-        raise UsageError(f"unknown parameter {key!r}; valid ones are: {', '.join(field_types)}")
+    if key not in PARAM_NAMES:
+        raise UsageError(f"unknown parameter {key!r}; valid ones are: {', '.join(PARAM_NAMES)}")
     try:
         if key == "n_real":
             return int(text)
@@ -52,10 +52,9 @@ def load_config(path: str) -> dict:
     except tomllib.TOMLDecodeError as exc:
         raise UsageError(f"config file {path}: {exc}") from None
     data = data.get("params", data)
-    valid = {f.name for f in dataclasses.fields(Params)}
-    unknown = sorted(set(data) - valid)
+    unknown = sorted(set(data) - set(PARAM_NAMES))
     if unknown:
-        raise UsageError(f"config file {path}: unknown parameter(s) {unknown}; valid ones are: {', '.join(sorted(valid))}")
+        raise UsageError(f"config file {path}: unknown parameter(s) {unknown}; valid ones are: {', '.join(PARAM_NAMES)}")
     return data
 
 

@@ -98,14 +98,3 @@ class RunningMoments:
         if self.count < 2:
             return np.zeros_like(self.mean)
         return np.sqrt(self.m2 / (self.count - 1) / self.count)
-
-    def state(self) -> dict:
-        return {"count": self.count, "mean": self.mean, "m2": self.m2}
-
-    @classmethod
-    def from_state(cls, state: dict) -> "RunningMoments":
-        moments = cls(len(state["mean"]))
-        moments.count = int(state["count"])
-        moments._mean = np.array(state["mean"], dtype=np.float64)
-        moments._m2 = np.array(state["m2"], dtype=np.float64)
-        return moments
