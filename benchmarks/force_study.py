@@ -11,9 +11,7 @@ same lines, and writes ``force_study.json`` with device, versions and date.
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
-import platform
 import statistics
 import sys
 import time
@@ -26,6 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import mdroll  # noqa: E402
 from mdroll.devices import resolve_device, synchronize, warp  # noqa: E402
 from mdroll.ensemble.force import launch_force, prepare_lines  # noqa: E402
+from mdroll.provenance import environment  # noqa: E402
 
 
 def timed(fn, device, repeats):
@@ -39,25 +38,6 @@ def timed(fn, device, repeats):
         synchronize(device)
         times.append(time.perf_counter() - t0)
     return statistics.median(times), times, result
-
-
-def device_info(device: str) -> dict:
-    wp = warp()
-    info = {
-        "device": device,
-        "device_name": wp.get_device(device).name,
-        "warp": wp.config.version,
-        "numpy": np.__version__,
-        "python": platform.python_version(),
-        "platform": platform.platform(),
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-    }
-    if device.startswith("cuda"):
-        import cupy
-
-        info["cupy"] = cupy.__version__
-        info["cuda_runtime"] = cupy.cuda.runtime.runtimeGetVersion()
-    return info
 
 
 def main(argv=None) -> int:
@@ -76,7 +56,7 @@ def main(argv=None) -> int:
     wp = warp()
     params = mdroll.Params(L=(2**args.log2n) * 5e-6)
     R = args.realizations
-    record = {"info": device_info(device), "realizations": R, "n_points": params.n_points, "boundary": args.boundary,
+    record = {"info": environment(device), "realizations": R, "n_points": params.n_points, "boundary": args.boundary,
               "results": []}
 
     # compilation and first launches, timed apart on a tiny problem
@@ -90,7 +70,7 @@ def main(argv=None) -> int:
 
     gen_median, gen_times, lines = timed(lambda: mdroll.rough_lines(params, 1, R, device=device), device, args.repeats)
     record["generate_s"] = gen_median
-    print(f"{device_info(device)['device_name']}: {R} x {params.n_points} points; generate {gen_median * 1e3:.2f} ms", flush=True)
+    print(f"{environment(device)['device_name']}: {R} x {params.n_points} points; generate {gen_median * 1e3:.2f} ms", flush=True)
 
     d = params.d0
     forces = {}

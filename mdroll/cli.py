@@ -1,4 +1,4 @@
-"""Command line: ``mdroll params`` and ``mdroll run`` (also ``python -m mdroll ...``).
+"""Command line: ``mdroll params``, ``mdroll run`` and ``mdroll validate`` (also ``python -m mdroll ...``).
 
 Usage errors print one line on stderr, no traceback, and exit with code 2.
 """
@@ -96,10 +96,41 @@ def _parser() -> argparse.ArgumentParser:
     p_run.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
     p_run.add_argument("--batch", type=int, help="realizations per batch (default: from free memory)")
     p_run.add_argument("--window", action="store_true", help="Hann window before the FFT")
-    p_run.add_argument("--out", help="output directory (default mdroll-out/<timestamp>)")
-    p_run.add_argument("--force", action="store_true", help="write into an existing output directory")
-    p_run.add_argument("--no-progress", action="store_true")
+    output(p_run)
+
+    p_val = sub.add_parser("validate", help="check the thesis's analytic formulas against ensembles; exit 1 on a failure")
+    size = p_val.add_mutually_exclusive_group()
+    size.add_argument("--quick", dest="size", action="store_const", const="quick",
+                      help="small ensembles, minutes on a 2-core CPU (default)")
+    size.add_argument("--full", dest="size", action="store_const", const="full", help="thesis-scale ensembles (GPU)")
+    p_val.add_argument("--only", action="append", metavar="NAME", help="run only this check (repeatable): "
+                       + ", ".join(_check_names()))
+    p_val.add_argument("--seed", type=int, default=0)
+    p_val.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
+    output(p_val)
     return parser
+
+
+def _check_names() -> list[str]:
+    from .validation.checks import CHECKS
+
+    return list(CHECKS)
+
+
+def output(p) -> None:
+    p.add_argument("--out", help="output directory (default mdroll-out/<command>-<timestamp>)")
+    p.add_argument("--force", action="store_true", help="write into an existing output directory")
+    p.add_argument("--no-progress", action="store_true")
+
+
+def _output_dir(args) -> Path:
+    """The output directory, created; an existing non-empty one only with --force."""
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    out = Path(args.out or Path("mdroll-out") / f"{args.command}-{stamp}")
+    if out.exists() and any(out.iterdir()) and not args.force:
+        raise UsageError(f"output directory {str(out)!r} exists and is not empty; use --force to write into it")
+    out.mkdir(parents=True, exist_ok=True)
+    return out
 
 
 def _fmt(value) -> str:
@@ -125,10 +156,7 @@ def cmd_run(args) -> int:
 
     params = build_params(args)
     device = resolve_device(args.device)
-    out = Path(args.out or Path("mdroll-out") / datetime.datetime.now().strftime("%Y%m%d-%H%M%S"))
-    if out.exists() and any(out.iterdir()) and not args.force:
-        raise UsageError(f"output directory {str(out)!r} exists and is not empty; use --force to write into it")
-    out.mkdir(parents=True, exist_ok=True)
+    out = _output_dir(args)
     result = run_ensemble(params, seed=args.seed, algorithm=args.algorithm, mode=args.mode, boundary=args.boundary,
                           device=device, batch=args.batch, progress=not args.no_progress, window=args.window)
     result.save(out / "spectra.npz")
@@ -149,10 +177,32 @@ def cmd_run(args) -> int:
     return 0
 
 
+def cmd_validate(args) -> int:
+    from .devices import resolve_device
+    from .provenance import environment
+    from .validation.checks import SIZES, run_checks
+    from .validation.report import format_table, write_report
+
+    size = args.size or "quick"
+    device = resolve_device(args.device)
+    if args.only:
+        unknown = sorted(set(args.only) - set(_check_names()))
+        if unknown:
+            raise UsageError(f"--only: unknown check(s) {unknown}; valid ones are: {', '.join(_check_names())}")
+    out = _output_dir(args)
+    results = run_checks(size, only=args.only, seed=args.seed, device=device, progress=not args.no_progress)
+    meta = {"size": size, "seed": args.seed, "base_params": SIZES[size].base.as_dict(),
+            "coupled_params": SIZES[size].coupled.as_dict(), **environment(device)}
+    write_report(results, out, meta)
+    print(format_table(results))
+    print(f"wrote {out}/: validation.json and one PNG per check")
+    return 0 if all(r.passed for r in results) else 1
+
+
 def main(argv=None) -> int:
     try:
         args = _parser().parse_args(argv)
-        return {"params": cmd_params, "run": cmd_run}[args.command](args)
+        return {"params": cmd_params, "run": cmd_run, "validate": cmd_validate}[args.command](args)
     except UsageError as exc:
         print(f"mdroll: error: {exc}", file=sys.stderr)
         return 2

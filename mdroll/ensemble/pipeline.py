@@ -13,7 +13,7 @@ from ..devices import resolve_device, synchronize, warp
 from ..params import ParameterError, Params
 from .force import ALGORITHMS, BOUNDARIES, check_choice, launch_force, prepare_lines
 from .lines import check_seed, realization_indices, rough_lines
-from .spectra import RunningMoments, array_module, psd_rows, to_host, wavenumbers
+from .spectra import RunningMoments, array_module, array_rows, psd_rows, to_host, wavenumbers
 
 MODES = ("decoupled", "coupled")
 #: The open-boundary wheel range of an ensemble is set from d0 + H_BOUND_SIGMAS * h0, not from
@@ -127,15 +127,6 @@ def _check_finite(values, what: str, stage: str, indices: np.ndarray) -> None:
         raise NonFiniteError(f"{what} is not finite in realization {int(indices[row])} at stage {stage!r}")
 
 
-def _rows(array, device: str):
-    """A NumPy (CPU) or CuPy (CUDA) view of a Warp array."""
-    if device.startswith("cuda"):
-        from ..devices import cupy_view
-
-        return cupy_view(array)
-    return array.numpy()
-
-
 def run_ensemble(
     params: Params,
     seed: int = 0,
@@ -177,7 +168,7 @@ def run_ensemble(
     force_mean_sum = force_rms_sum = 0.0
     lost_total = 0
     steps = None
-    bar = _progress(len(indices), progress)
+    bar = progress_bar(len(indices), progress)
 
     def stage(name, fn):
         synchronize(device)
@@ -200,7 +191,7 @@ def run_ensemble(
         else:
             force, accel, lost = stage("response", lambda: coupled_series(prepared, params, algorithm, device))
             lost_total += lost
-        force_rows = _rows(force, device)
+        force_rows = array_rows(force, device)
         _check_finite(force_rows, "force", "force" if mode == "decoupled" else "response", idx)
         force_psd = stage("spectra", lambda: psd_rows(force, params.dx, device, window))
         accel_psd = stage("spectra", lambda: psd_rows(accel, params.dx, device, window))
@@ -273,12 +264,13 @@ class _NoBar:
         pass
 
 
-def _progress(total: int, enabled: bool):
+def progress_bar(total: int, enabled: bool, desc: str = "realizations"):
+    """A tqdm bar over realizations (done, rate, ETA), or a silent stand-in."""
     if not enabled:
         return _NoBar()
     from tqdm.auto import tqdm
 
-    return tqdm(total=total, unit="real", desc="realizations", dynamic_ncols=True)
+    return tqdm(total=total, unit="real", desc=desc, dynamic_ncols=True)
 
 
 def result_summary(result: EnsembleResult) -> dict:

@@ -53,6 +53,13 @@ def array_module(array):
     return __import__("cupy") if type(array).__module__.startswith("cupy") else np
 
 
+def array_rows(array, device: str):
+    """A NumPy (CPU) or CuPy (CUDA) view of a Warp, NumPy or CuPy array."""
+    if is_cuda(device):
+        return cupy_view(array)
+    return array.numpy() if hasattr(array, "numpy") else np.asarray(array)
+
+
 def to_host(array) -> np.ndarray:
     """A NumPy array from a NumPy, CuPy or Warp array."""
     if hasattr(array, "get"):
