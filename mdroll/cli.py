@@ -1,4 +1,4 @@
-"""Command line: ``mdroll params``, ``mdroll run`` and ``mdroll validate`` (also ``python -m mdroll ...``).
+"""Command line: ``mdroll params``, ``run``, ``validate`` and ``bench`` (also ``python -m mdroll ...``).
 
 Usage errors print one line on stderr, no traceback, and exit with code 2.
 """
@@ -108,6 +108,14 @@ def _parser() -> argparse.ArgumentParser:
     p_val.add_argument("--seed", type=int, default=0)
     p_val.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
     output(p_val)
+
+    p_bench = sub.add_parser("bench", help="scaling study of the three algorithms: bench.json, bench.png and a table")
+    size = p_bench.add_mutually_exclusive_group()
+    size.add_argument("--quick", dest="size", action="store_const", const="quick",
+                      help="small sizes, minutes on a 2-core CPU (default)")
+    size.add_argument("--full", dest="size", action="store_const", const="full", help="the GPU machine's study")
+    p_bench.add_argument("--device", action="append", help="cpu, cuda or cuda:N (repeatable; default every available one)")
+    output(p_bench)
     return parser
 
 
@@ -199,10 +207,23 @@ def cmd_validate(args) -> int:
     return 0 if all(r.passed for r in results) else 1
 
 
+def cmd_bench(args) -> int:
+    from .bench import format_table, plot_study, run_study
+
+    out = _output_dir(args)
+    say = (lambda text: None) if args.no_progress else (lambda text: print(text, file=sys.stderr, flush=True))
+    record = run_study(args.size or "quick", devices=args.device, progress=say)
+    (out / "bench.json").write_text(json.dumps(record, indent=2))
+    plot_study(record, out / "bench.png")
+    print(format_table(record))
+    print(f"wrote {out}/: bench.json bench.png")
+    return 0
+
+
 def main(argv=None) -> int:
     try:
         args = _parser().parse_args(argv)
-        return {"params": cmd_params, "run": cmd_run, "validate": cmd_validate}[args.command](args)
+        return {"params": cmd_params, "run": cmd_run, "validate": cmd_validate, "bench": cmd_bench}[args.command](args)
     except UsageError as exc:
         print(f"mdroll: error: {exc}", file=sys.stderr)
         return 2

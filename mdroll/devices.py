@@ -34,6 +34,18 @@ def available_devices() -> list[str]:
     return [str(d) for d in warp().get_devices()]
 
 
+def usable_devices() -> list[str]:
+    """Devices an ensemble can run on: ``cpu`` always, each CUDA device when CuPy (cuFFT) is installed."""
+    devices = ["cpu"]
+    if warp().is_cuda_available():
+        try:
+            import cupy  # noqa: F401
+        except ImportError:
+            return devices
+        devices += [d for d in available_devices() if d.startswith("cuda")]
+    return devices
+
+
 def resolve_device(device: str | None) -> str:
     """Turn ``"auto" | "cpu" | "cuda" | "cuda:N" | None`` into a concrete Warp device name.
 

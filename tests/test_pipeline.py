@@ -28,18 +28,20 @@ def test_averaged_psd_equals_mean_of_numpy_psds(device):
     assert result.force_mean == pytest.approx(force.mean(), rel=1e-12)
 
 
-def test_decoupled_acceleration_is_the_semi_implicit_euler_response():
-    lines = rough_lines(P, 1, 1)
-    first, steps = step_range(P, "open", P.d0, H_BOUND_SIGMAS * P.h0)
-    force = contact_force(lines, P, "tree", "open", h_max=H_BOUND_SIGMAS * P.h0)[0]
+def test_decoupled_acceleration_is_the_semi_implicit_euler_response(device):
+    """The chunked parallel response (RESPONSE_CHUNK steps a chunk) against a plain sequential loop."""
+    p = Params(L=0.2, n_real=1)  # ~3.8e4 steps: ~150 chunks
+    lines = rough_lines(p, 1, 1)
+    first, steps = step_range(p, "open", p.d0, H_BOUND_SIGMAS * p.h0)
+    force = contact_force(lines, p, "tree", "open", h_max=H_BOUND_SIGMAS * p.h0)[0]
     y = v = 0.0
     accel = np.empty(steps)
     for s in range(steps):
-        accel[s] = (P.F_N - force[s] - P.k_contact * y) / P.m
-        v += P.dt * accel[s]
-        y += P.dt * v
-    result = run_ensemble(P, seed=1, realizations=1, device="cpu", progress=False)
-    q, C = psd(accel[None, :], P.dx)
+        accel[s] = (p.F_N - force[s] - p.k_contact * y) / p.m
+        v += p.dt * accel[s]
+        y += p.dt * v
+    result = run_ensemble(p, seed=1, realizations=1, device=device, progress=False)
+    q, C = psd(accel[None, :], p.dx)
     np.testing.assert_allclose(result.accel_psd[1:], C[0, 1:], rtol=1e-9)
 
 
@@ -144,3 +146,15 @@ def test_cli_config_file_and_existing_output(tmp_path):
     (tmp_path / "out" / "x").write_text("")
     proc = _cli("run", "--preset", "quick", "--out", str(tmp_path / "out"))
     assert proc.returncode == 2 and "--force" in proc.stderr
+
+
+def test_euler_transfer_is_the_free_step_repeated():
+    from mdroll.ensemble.pipeline import euler_transfer
+
+    p = Params()
+    y, v = 1e-6, 2e-4
+    for _ in range(300):
+        a = -p.k_contact * y / p.m
+        v += p.dt * a
+        y += p.dt * v
+    np.testing.assert_allclose(euler_transfer(p, 300) @ [1e-6, 2e-4], [y, v], rtol=1e-12)

@@ -219,13 +219,34 @@ def run_ensemble(
     )
 
 
+#: Steps per chunk of the parallel decoupled response.
+RESPONSE_CHUNK = 256
+
+
+def euler_transfer(params: Params, steps: int) -> np.ndarray:
+    """The 2x2 matrix that carries (y, y') over ``steps`` free semi-implicit Euler steps of
+    ``m y'' = -k_c y``: one step is ``[[1 - dt^2 w^2, dt], [-dt w^2, 1]]`` with w^2 = k_c / m."""
+    dt, w2 = params.dt, params.k_contact / params.m
+    one_step = np.array([[1.0 - dt * dt * w2, dt], [-dt * w2, 1.0]])
+    return np.linalg.matrix_power(one_step, steps)
+
+
 def _decoupled(force, params: Params, device: str):
-    from ..kernels.dynamics import decoupled_response
+    """Acceleration (m/s^2) of the wheel on the linearized contact spring (section 5.1)."""
+    from ..kernels.dynamics import decoupled_chunk_ends, decoupled_chunk_starts, decoupled_chunks
 
     wp = warp()
+    rows, steps = force.shape
+    chunks = -(-steps // RESPONSE_CHUNK)
+    ends = wp.empty((rows, chunks), dtype=wp.vec2d, device=device)
+    starts = wp.empty_like(ends)
     accel = wp.empty(force.shape, dtype=wp.float64, device=device)
-    wp.launch(decoupled_response, dim=force.shape[0],
-              inputs=[force, force.shape[1], params.F_N, params.k_contact, 1.0 / params.m, params.dt, accel], device=device)
+    common = [params.F_N, params.k_contact, 1.0 / params.m, params.dt]
+    wp.launch(decoupled_chunk_ends, dim=(rows, chunks), inputs=[force, steps, RESPONSE_CHUNK, *common, ends], device=device)
+    transfer = wp.mat22d(*euler_transfer(params, RESPONSE_CHUNK).ravel())
+    wp.launch(decoupled_chunk_starts, dim=rows, inputs=[ends, chunks, transfer, starts], device=device)
+    wp.launch(decoupled_chunks, dim=(rows, chunks), inputs=[force, steps, RESPONSE_CHUNK, starts, *common, accel],
+              device=device)
     return accel
 
 

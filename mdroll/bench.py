@@ -1,0 +1,281 @@
+"""The scaling study behind ``mdroll bench``: measured cost of the three force algorithms.
+
+Sections (each a list of timed points, each point the median of ``repeats`` runs on fresh lines,
+the device synchronized before every clock read, after a warm-up whose compile time is
+reported apart):
+
+- ``refinement``: fixed L, dx halving (n doubles, springs in contact double): direct ~ n^2,
+  tree ~ n log n, edge ~ n; the exponent of time vs n is fitted on log-log by least squares.
+- ``distance``: fixed dx, L growing (n grows, contact fixed): all three ~ n.
+- ``ensemble``: throughput (realization-steps per second) against the number of realizations R.
+- ``cpu_vs_cuda``: the same run on both devices and their ratio (when CUDA is present).
+- ``stages``: the stage breakdown of a warm end-to-end ``run_ensemble``.
+- ``memory``: bytes of device arrays per realization, counted from the arrays a batch allocates.
+- ``thesis`` (``--full`` on CUDA): 300 x 2^20 force-only and warm end-to-end times per algorithm.
+
+The study lives in the package (not under ``benchmarks/``) so the installed ``mdroll bench``
+has it; ``benchmarks/`` holds the pytest-benchmark suite, the notes and the recorded results.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .devices import resolve_device, synchronize, usable_devices, warp
+from .ensemble.force import ALGORITHMS, launch_force, prepare_lines
+from .ensemble.lines import rough_lines
+from .ensemble.pipeline import H_BOUND_SIGMAS, run_ensemble
+from .params import Params
+
+#: What the issue expects of the refinement exponents (time ~ n^p).
+EXPECTED_REFINEMENT_EXPONENT = {"direct": 2.0, "tree": 1.1, "edge": 1.0}
+
+
+@dataclass(frozen=True)
+class StudySize:
+    """Sizes of one study. ``refinement``: (L in m, log2 n values, realizations); ``distance``:
+    (log2 n values at the default dx, realizations); ``ensemble``: (log2 n, R values)."""
+
+    repeats: int
+    refinement: tuple
+    distance: tuple
+    ensemble: tuple
+    compare: tuple  # (log2 n, realizations) of the CPU-vs-CUDA run
+    stages: Params
+    thesis: bool
+    cpu_realizations: int | None = None  # realizations of the CPU points of the sweeps (default: as CUDA)
+
+
+STUDIES = {
+    # minutes on a 2-core CPU
+    "quick": StudySize(repeats=3, refinement=(0.05, (12, 13, 14, 15, 16), 8), distance=((14, 15, 16, 17, 18), 4),
+                       ensemble=(15, (1, 2, 4, 8, 16)), compare=(15, 4), stages=Params(L=0.2, n_real=8), thesis=False),
+    # the GPU machine (CPU points are limited to the sizes it finishes in reasonable time)
+    "full": StudySize(repeats=5, refinement=(0.25, (13, 14, 15, 16, 17, 18), 32),
+                      distance=((14, 15, 16, 17, 18, 19, 20, 21, 22), 32), ensemble=(18, (1, 4, 16, 64, 256, 1024)),
+                      compare=(18, 64), stages=Params(L=5.24288, n_real=300), thesis=True, cpu_realizations=1),
+}
+#: Largest problem (realizations x points) the CPU device is given in a full study: direct takes
+#: ~1 us a step on one core, tree ~0.05 us, edge ~0.02 us.
+CPU_POINT_LIMIT = {"direct": 2**20, "tree": 2**22, "edge": 2**23}
+
+
+def timed(fn, device: str, repeats: int, setup=None) -> tuple[float, list[float]]:
+    """Median and all wall times (s) of ``fn(setup(i))`` for i in range(repeats): ``setup``
+    makes fresh inputs outside the clock; the device is synchronized before each clock read."""
+    times = []
+    for i in range(repeats):
+        arg = setup(i) if setup else None
+        synchronize(device)
+        t0 = time.perf_counter()
+        fn(arg) if setup else fn()
+        synchronize(device)
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), times
+
+
+def fit_exponent(n, t) -> tuple[float, float]:
+    """Least-squares slope p of log t = p log n + c and its standard error."""
+    x, y = np.log(np.asarray(n, float)), np.log(np.asarray(t, float))
+    if x.size < 3:
+        return float(np.polyfit(x, y, 1)[0]), math.nan
+    coef, cov = np.polyfit(x, y, 1, cov=True)
+    return float(coef[0]), float(math.sqrt(cov[0, 0]))
+
+
+def force_time(params: Params, algorithm: str, realizations: int, device: str, repeats: int,
+               boundary: str = "periodic") -> dict:
+    """Median time (s) of the force launch alone and of the per-line build, on fresh lines each repeat."""
+    wp = warp()
+    d = params.d0
+    h_bound = H_BOUND_SIGMAS * params.h0
+
+    def prepared(seed):
+        lines = rough_lines(params, seed, realizations, device=device)
+        lines = lines if isinstance(lines, wp.array) else wp.array(lines, dtype=wp.float64, device="cpu", copy=False)
+        return prepare_lines(lines, params, algorithm, boundary, d, device, h_max=h_bound), lines
+
+    first, _ = prepared(0)
+    out = wp.empty((realizations, first.steps), dtype=wp.float64, device=device)
+    force_s, times = timed(lambda arg: launch_force(arg[0], params, algorithm, d, device, out=out), device, repeats,
+                           setup=lambda i: prepared(i + 1))
+    build_s, _ = timed(lambda lines: prepare_lines(lines, params, algorithm, boundary, d, device, h_max=h_bound), device,
+                       repeats, setup=lambda i: prepared(i + 1)[1])
+    steps = first.steps
+    return {"algorithm": algorithm, "device": device, "n": params.n_points, "dx": params.dx, "L": params.length,
+            "realizations": realizations, "steps": steps, "force_s": force_s, "force_times_s": times, "build_s": build_s,
+            "ns_per_step": force_s / (realizations * steps) * 1e9,
+            "springs_in_contact": params.springs_in_contact}
+
+
+def _allowed(device: str, algorithm: str, n: int, realizations: int, full: bool) -> bool:
+    return device.startswith("cuda") or not full or n * realizations <= CPU_POINT_LIMIT[algorithm]
+
+
+def compile_time(device: str) -> float:
+    """Seconds of the first use of every kernel (compilation or cache load, module load) on a tiny problem."""
+    small = Params(L=0.03)
+    t0 = time.perf_counter()
+    for algorithm in ALGORITHMS:
+        for mode in ("decoupled", "coupled"):
+            run_ensemble(small, realizations=2, algorithm=algorithm, mode=mode, device=device, progress=False)
+    synchronize(device)
+    return time.perf_counter() - t0
+
+
+def memory_per_realization(params: Params, algorithm: str, device: str) -> int:
+    """Bytes of the device arrays one realization occupies in a batch (lines, prefix sums, tree,
+    bounds, force, acceleration, two half spectra), counted from the arrays themselves."""
+    wp = warp()
+    lines = rough_lines(params, 0, 1, device=device)
+    lines = lines if isinstance(lines, wp.array) else wp.array(lines, dtype=wp.float64, device="cpu", copy=False)
+    prepared = prepare_lines(lines, params, algorithm, "open", params.d0, device, h_max=H_BOUND_SIGMAS * params.h0)
+    arrays = [prepared.lines, prepared.bounds, prepared.prefix, prepared.tree]
+    total = sum(a.capacity for a in arrays if a is not None) + (0 if prepared.lines is lines else lines.capacity)
+    force_bytes = 8 * prepared.steps
+    spectrum_bytes = 16 * (prepared.steps // 2 + 1)
+    return int(total + 2 * force_bytes + 2 * spectrum_bytes)
+
+
+def run_study(size: str = "quick", devices=None, progress=print) -> dict:
+    """Run the study of ``size`` ("quick" or "full") on ``devices`` (default: every available
+    one; CUDA only with CuPy) and return the JSON-ready record."""
+    from .provenance import environment
+
+    study = STUDIES[size]
+    full = size == "full"
+    devices = [resolve_device(d) for d in (devices or usable_devices()[:2])]
+    record = {"size": size, "environment": {d: environment(d) for d in devices}, "compile_s": {}, "refinement": [],
+              "distance": [], "ensemble": [], "cpu_vs_cuda": [], "stages": {}, "memory_bytes_per_realization": {},
+              "fits": {}, "thesis": {}}
+    for device in devices:
+        record["compile_s"][device] = compile_time(device)
+        progress(f"{device}: first use (compile/load) {record['compile_s'][device]:.2f} s")
+
+    length, exps, reps = study.refinement
+    sweeps = {"refinement": ([Params(L=length, dx=length / 2**e) for e in exps], reps),
+              "distance": ([Params(L=2**e * 5e-6) for e in study.distance[0]], study.distance[1])}
+    for section, (sizes, reps) in sweeps.items():
+        for device in devices:
+            if device == "cpu" and study.cpu_realizations:
+                reps = study.cpu_realizations
+            for algorithm in ALGORITHMS:
+                for p in sizes:
+                    if _allowed(device, algorithm, p.n_points, reps, full):
+                        record[section].append(force_time(p, algorithm, reps, device, study.repeats))
+                _fit(record, section, device, algorithm, progress)
+    e, counts = study.ensemble
+    for device in devices:
+        for algorithm in ALGORITHMS:
+            for count in counts:
+                if _allowed(device, algorithm, 2**e, count, full):
+                    point = force_time(Params(L=2**e * 5e-6), algorithm, count, device, study.repeats)
+                    point["realization_steps_per_s"] = count * point["steps"] / point["force_s"]
+                    record["ensemble"].append(point)
+    if len(devices) > 1:
+        e, count = study.compare
+        p = Params(L=2**e * 5e-6)
+        for algorithm in ALGORITHMS:
+            # the same run on every device; direct with fewer realizations so one CPU core finishes
+            runs = min(count, max(1, CPU_POINT_LIMIT[algorithm] // p.n_points))
+            times = {d: force_time(p, algorithm, runs, d, study.repeats)["force_s"] for d in devices}
+            cpu = times.get("cpu")
+            record["cpu_vs_cuda"].append({"algorithm": algorithm, "n": p.n_points, "realizations": runs, "times_s": times,
+                                          **{f"speedup_{d}": cpu / t for d, t in times.items() if d != "cpu" and cpu}})
+    for device in devices:
+        stages_params = study.stages if device.startswith("cuda") or not full else Params(L=0.2, n_real=8)
+        run_ensemble(stages_params, device=device, progress=False)  # warm-up: plans, pools
+        result = run_ensemble(stages_params, device=device, progress=False)
+        record["stages"][device] = {"params": {"L": stages_params.L, "n_real": stages_params.n_real},
+                                    "timings_s": result.timings, "total_s": sum(result.timings.values())}
+        record["memory_bytes_per_realization"][device] = {
+            alg: memory_per_realization(Params(), alg, device) for alg in ALGORITHMS}
+        progress(f"{device}: warm end to end {record['stages'][device]['total_s']:.3f} s")
+    if study.thesis:
+        for device in (d for d in devices if d.startswith("cuda")):
+            record["thesis"][device] = thesis_scale(device, study.repeats, progress)
+    return record
+
+
+def thesis_scale(device: str, repeats: int, progress=print) -> dict:
+    """300 x 2^20, open boundary: force-only per algorithm and warm end-to-end per algorithm."""
+    p = Params(L=5.24288, n_real=300)
+    out = {"force": {}, "end_to_end": {}}
+    for algorithm in ALGORITHMS:
+        out["force"][algorithm] = force_time(p, algorithm, p.n_real, device, repeats, boundary="open")
+        progress(f"{device} thesis force {algorithm}: {out['force'][algorithm]['force_s'] * 1e3:.2f} ms")
+    for algorithm in ALGORITHMS:
+        run_ensemble(p, algorithm=algorithm, device=device, progress=False)
+        total, times = timed(lambda: run_ensemble(p, algorithm=algorithm, device=device, progress=False), device, 3)
+        out["end_to_end"][algorithm] = {"total_s": total, "times_s": times}
+        progress(f"{device} thesis end to end {algorithm}: {total:.3f} s")
+    return out
+
+
+def _fit(record, section, device, algorithm, progress):
+    points = [r for r in record[section] if r["device"] == device and r["algorithm"] == algorithm]
+    if len(points) < 2:
+        return
+    slope, err = fit_exponent([r["n"] for r in points], [r["force_s"] for r in points])
+    record["fits"].setdefault(section, {}).setdefault(device, {})[algorithm] = {"exponent": slope, "stderr": err}
+    progress(f"{device} {section:<10} {algorithm:<6} time ~ n^{slope:.3f} +- {err:.3f} "
+             f"({len(points)} sizes, {points[0]['n']}..{points[-1]['n']})")
+
+
+def format_table(record: dict) -> str:
+    """The fitted exponents, the CPU-vs-CUDA ratios and the stage breakdowns as text."""
+    lines = ["scaling exponents (time ~ n^p, least squares on log-log, +- standard error)"]
+    for section, per_device in record["fits"].items():
+        for device, per_alg in per_device.items():
+            for alg, fit in per_alg.items():
+                expected = EXPECTED_REFINEMENT_EXPONENT[alg] if section == "refinement" else 1.0
+                lines.append(f"  {section:<10} {device:<7} {alg:<6} p = {fit['exponent']:.3f} +- {fit['stderr']:.3f}"
+                             f"   (expected ~{expected:g})")
+    for row in record["cpu_vs_cuda"]:
+        speed = ", ".join(f"{k[8:]} {v:.0f}x" for k, v in row.items() if k.startswith("speedup_"))
+        lines.append(f"  cpu vs cuda {row['algorithm']:<6} n = {row['n']}, R = {row['realizations']}: {speed}")
+    for device, st in record["stages"].items():
+        parts = ", ".join(f"{k} {v:.3f}" for k, v in st["timings_s"].items())
+        lines.append(f"  stages {device} (L = {st['params']['L']} m, R = {st['params']['n_real']}): {parts}; total {st['total_s']:.3f} s")
+    for device, mem in record["memory_bytes_per_realization"].items():
+        lines.append(f"  memory {device} per realization at the defaults: "
+                     + ", ".join(f"{k} {v / 2**20:.1f} MiB" for k, v in mem.items()))
+    return "\n".join(lines)
+
+
+def plot_study(record: dict, path) -> None:
+    """Log-log time vs n with the fitted lines: one colour per algorithm, solid CUDA, dashed CPU."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    sections = [s for s in ("refinement", "distance") if record[s]]
+    fig, axes = plt.subplots(1, len(sections), figsize=(6 * len(sections), 4.5), layout="constrained", squeeze=False)
+    colours = {"direct": "C3", "tree": "C0", "edge": "C2"}
+    for ax, section in zip(axes[0], sections):
+        for device in sorted({r["device"] for r in record[section]}):
+            for alg in ALGORITHMS:
+                pts = [r for r in record[section] if r["device"] == device and r["algorithm"] == alg]
+                if not pts:
+                    continue
+                n = np.array([r["n"] for r in pts], float)
+                t = np.array([r["force_s"] for r in pts])
+                style = "--" if device == "cpu" else "-"
+                ax.loglog(n, t, "o", color=colours[alg], ms=4)
+                fit = record["fits"].get(section, {}).get(device, {}).get(alg)
+                if fit:
+                    c = np.mean(np.log(t) - fit["exponent"] * np.log(n))
+                    ax.loglog(n, np.exp(c) * n ** fit["exponent"], style, color=colours[alg],
+                              label=f"{alg} {device}: n^{fit['exponent']:.2f}")
+        ax.set_xlabel("n (points per line)")
+        ax.set_ylabel("force time (s)")
+        ax.set_title("refinement at fixed L" if section == "refinement" else "rolling distance at fixed dx")
+        ax.legend(fontsize=7)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,42 @@
+"""The scaling study behind ``mdroll bench`` on a tiny size: its fits, records, table and plot."""
+
+import json
+
+import numpy as np
+import pytest
+
+from mdroll import Params, bench
+from mdroll.cli import main
+
+
+def test_fit_exponent_recovers_a_power_law():
+    n = 2.0 ** np.arange(10, 16)
+    rng = np.random.default_rng(0)
+    t = 3e-9 * n**1.5 * np.exp(rng.normal(0, 0.02, n.size))
+    slope, err = bench.fit_exponent(n, t)
+    assert slope == pytest.approx(1.5, abs=4 * err) and 0 < err < 0.05
+
+
+def test_memory_per_realization_is_affine_in_n():
+    # open boundary: steps = n - (fixed margins), so bytes = alpha n - beta
+    m1, m2, m4 = (bench.memory_per_realization(Params(L=L), "tree", "cpu") for L in (0.1, 0.2, 0.4))
+    assert (m4 - m2) / (m2 - m1) == pytest.approx(2.0, rel=0.02)
+    # at least the line, prefix sums, force and acceleration: 4 float64 per point
+    assert (m2 - m1) >= 4 * 8 * (Params(L=0.2).n_points - Params(L=0.1).n_points)
+
+
+def test_tiny_study_through_the_cli(tmp_path, monkeypatch, device):
+    tiny = bench.StudySize(repeats=2, refinement=(0.03, (10, 11, 12), 2), distance=((13, 14, 15), 2), ensemble=(13, (1, 2)),
+                           compare=(13, 2), stages=Params(L=0.05, n_real=2), thesis=False)
+    monkeypatch.setitem(bench.STUDIES, "quick", tiny)
+    assert main(["bench", "--quick", "--device", device, "--out", str(tmp_path), "--no-progress"]) == 0
+    record = json.loads((tmp_path / "bench.json").read_text())
+    assert record["environment"][device]["device_name"]
+    fits = record["fits"]["refinement"][device]
+    assert set(fits) == {"tree", "direct", "edge"}
+    # direct grows fastest under refinement: its window grows with n
+    assert fits["direct"]["exponent"] > fits["edge"]["exponent"]
+    assert len(record["distance"]) == 9 and all(p["force_s"] > 0 for p in record["distance"])
+    assert {p["realizations"] for p in record["ensemble"]} == {1, 2}
+    assert record["stages"][device]["total_s"] > 0
+    assert (tmp_path / "bench.png").read_bytes()[:4] == b"\x89PNG"
