@@ -39,7 +39,8 @@ EXPECTED_REFINEMENT_EXPONENT = {"direct": 2.0, "tree": 1.1, "edge": 1.0}
 @dataclass(frozen=True)
 class StudySize:
     """Sizes of one study. ``refinement``: (L in m, log2 n values, realizations); ``distance``:
-    (log2 n values at the default dx, realizations); ``ensemble``: (log2 n, R values)."""
+    (log2 n values at the default dx, realizations); ``ensemble``: (log2 n, R values);
+    ``cpu_refinement`` / ``cpu_distance``: the CPU's own (smaller) sweeps, default the same."""
 
     repeats: int
     refinement: tuple
@@ -48,21 +49,33 @@ class StudySize:
     compare: tuple  # (log2 n, realizations) of the CPU-vs-CUDA run
     stages: Params
     thesis: bool
-    cpu_realizations: int | None = None  # realizations of the CPU points of the sweeps (default: as CUDA)
+    cpu_refinement: tuple | None = None
+    cpu_distance: tuple | None = None
+
+    def sweeps(self, device: str) -> dict:
+        """``{section: ([Params per size], realizations)}`` for ``device``."""
+        cpu = device == "cpu"
+        length, exps, reps = (self.cpu_refinement if cpu and self.cpu_refinement else self.refinement)
+        exps_d, reps_d = (self.cpu_distance if cpu and self.cpu_distance else self.distance)
+        return {"refinement": ([Params(L=length, dx=length / 2**e) for e in exps], reps),
+                "distance": ([Params(L=2**e * 5e-6) for e in exps_d], reps_d)}
 
 
 STUDIES = {
     # minutes on a 2-core CPU
     "quick": StudySize(repeats=3, refinement=(0.05, (12, 13, 14, 15, 16), 8), distance=((14, 15, 16, 17, 18), 4),
                        ensemble=(15, (1, 2, 4, 8, 16)), compare=(15, 4), stages=Params(L=0.2, n_real=8), thesis=False),
-    # the GPU machine (CPU points are limited to the sizes it finishes in reasonable time)
-    "full": StudySize(repeats=5, refinement=(0.25, (13, 14, 15, 16, 17, 18), 32),
-                      distance=((14, 15, 16, 17, 18, 19, 20, 21, 22), 32), ensemble=(18, (1, 4, 16, 64, 256, 1024)),
-                      compare=(18, 64), stages=Params(L=5.24288, n_real=300), thesis=True, cpu_realizations=1),
+    # the GPU machine: CUDA sizes large enough to fill the GPU (tens of millions of steps), the
+    # CPU (one core per launch) its own smaller sweeps
+    "full": StudySize(repeats=5, refinement=(0.25, (17, 18, 19, 20, 21, 22), 64), distance=((16, 17, 18, 19, 20, 21, 22), 64),
+                      ensemble=(18, (1, 4, 16, 64, 256, 1024)), compare=(18, 64), stages=Params(L=5.24288, n_real=300),
+                      thesis=True, cpu_refinement=(0.25, (13, 14, 15, 16, 17, 18), 1),
+                      cpu_distance=((14, 15, 16, 17, 18, 19, 20, 21, 22), 1)),
 }
-#: Largest problem (realizations x points) the CPU device is given in a full study: direct takes
-#: ~1 us a step on one core, tree ~0.05 us, edge ~0.02 us.
-CPU_POINT_LIMIT = {"direct": 2**20, "tree": 2**22, "edge": 2**23}
+#: Largest problem (realizations x points) per device and algorithm in a full study: on one CPU
+#: core direct takes ~1 us a step, tree ~0.05 us, edge ~0.02 us; on the GPU the direct sum under
+#: refinement grows as n^2 (2^26 points at 2^20 per line is ~1 s).
+POINT_LIMIT = {"cpu": {"direct": 2**20, "tree": 2**22, "edge": 2**23}, "cuda": {"direct": 2**26}}
 
 
 def timed(fn, device: str, repeats: int, setup=None) -> tuple[float, list[float]]:
@@ -114,7 +127,8 @@ def force_time(params: Params, algorithm: str, realizations: int, device: str, r
 
 
 def _allowed(device: str, algorithm: str, n: int, realizations: int, full: bool) -> bool:
-    return device.startswith("cuda") or not full or n * realizations <= CPU_POINT_LIMIT[algorithm]
+    limit = POINT_LIMIT["cpu" if device == "cpu" else "cuda"].get(algorithm)
+    return not full or limit is None or n * realizations <= limit
 
 
 def compile_time(device: str) -> float:
@@ -157,13 +171,9 @@ def run_study(size: str = "quick", devices=None, progress=print) -> dict:
         record["compile_s"][device] = compile_time(device)
         progress(f"{device}: first use (compile/load) {record['compile_s'][device]:.2f} s")
 
-    length, exps, reps = study.refinement
-    sweeps = {"refinement": ([Params(L=length, dx=length / 2**e) for e in exps], reps),
-              "distance": ([Params(L=2**e * 5e-6) for e in study.distance[0]], study.distance[1])}
-    for section, (sizes, reps) in sweeps.items():
+    for section in ("refinement", "distance"):
         for device in devices:
-            if device == "cpu" and study.cpu_realizations:
-                reps = study.cpu_realizations
+            sizes, reps = study.sweeps(device)[section]
             for algorithm in ALGORITHMS:
                 for p in sizes:
                     if _allowed(device, algorithm, p.n_points, reps, full):
@@ -182,7 +192,7 @@ def run_study(size: str = "quick", devices=None, progress=print) -> dict:
         p = Params(L=2**e * 5e-6)
         for algorithm in ALGORITHMS:
             # the same run on every device; direct with fewer realizations so one CPU core finishes
-            runs = min(count, max(1, CPU_POINT_LIMIT[algorithm] // p.n_points))
+            runs = min(count, max(1, POINT_LIMIT["cpu"][algorithm] // p.n_points))
             times = {d: force_time(p, algorithm, runs, d, study.repeats)["force_s"] for d in devices}
             cpu = times.get("cpu")
             record["cpu_vs_cuda"].append({"algorithm": algorithm, "n": p.n_points, "realizations": runs, "times_s": times,

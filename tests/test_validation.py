@@ -78,9 +78,10 @@ def test_validation_ensemble_on_every_device(device):
     lines = to_numpy(rough_lines(p, 5, 3, device="cpu"))
     direct = contact_force(lines, p, "direct", "periodic")
     q, C = psd(direct, p.dx)
-    np.testing.assert_allclose(s.mean["direct"][1:], C.mean(axis=0)[1:], rtol=1e-9)
+    # FFT rounding differs between devices: bins far below the peak compare at 1e-12 of the peak
+    np.testing.assert_allclose(s.mean["direct"][1:], C.mean(axis=0)[1:], rtol=1e-9, atol=1e-12 * C.max())
     _, C48 = psd(formulas.edge_quadratic_force(p, lines), p.dx)
-    np.testing.assert_allclose(s.mean["eq48"][1:], C48.mean(axis=0)[1:], rtol=1e-9)
+    np.testing.assert_allclose(s.mean["eq48"][1:], C48.mean(axis=0)[1:], rtol=1e-9, atol=1e-12 * C48.max())
     assert s.rows["direct"].shape == (3, np.searchsorted(q, 8.5 * p.q_min, side="right"))
     assert s.max_tree_direct <= 1e-12 * p.F_N
 
