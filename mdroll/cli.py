@@ -58,8 +58,8 @@ def load_config(path: str) -> dict:
     return data
 
 
-def build_params(args) -> Params:
-    values: dict = {}
+def build_params(args, base: dict | None = None) -> Params:
+    values: dict = dict(base or {})
     if getattr(args, "preset", None):
         values.update(PRESETS[args.preset])
     if getattr(args, "config", None):
@@ -70,6 +70,8 @@ def build_params(args) -> Params:
         key, text = item.split("=", 1)
         values[key.strip()] = _parse_value(key.strip(), text.strip())
     if getattr(args, "realizations", None) is not None:
+        if args.realizations < 1:
+            raise UsageError(f"--realizations {args.realizations}: the number of realizations must be at least 1")
         values["n_real"] = args.realizations
     return Params(**values)
 
@@ -89,13 +91,17 @@ def _parser() -> argparse.ArgumentParser:
     p_run = sub.add_parser("run", help="run an ensemble and write spectra, summary and plots")
     common(p_run)
     p_run.add_argument("--realizations", type=int, help="number of realizations (default n_real = 300)")
-    p_run.add_argument("--seed", type=int, default=0)
-    p_run.add_argument("--algorithm", choices=["tree", "direct", "edge"], default="tree")
-    p_run.add_argument("--mode", choices=["decoupled", "coupled"], default="decoupled")
-    p_run.add_argument("--boundary", choices=["open", "periodic"], default="open")
+    p_run.add_argument("--first", type=int, help="index of the first realization (default 0): split an ensemble "
+                       "across processes, then `mdroll merge`")
+    p_run.add_argument("--seed", type=int, help="master seed (default 0)")
+    p_run.add_argument("--algorithm", choices=["tree", "direct", "edge"], help="default tree")
+    p_run.add_argument("--mode", choices=["decoupled", "coupled"], help="default decoupled")
+    p_run.add_argument("--boundary", choices=["open", "periodic"], help="default open")
     p_run.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
     p_run.add_argument("--batch", type=int, help="realizations per batch (default: from free memory)")
-    p_run.add_argument("--window", action="store_true", help="Hann window before the FFT")
+    p_run.add_argument("--memory-limit", type=float, metavar="GIB", help="cap the memory batches are sized from (GiB)")
+    p_run.add_argument("--window", action="store_true", default=None, help="Hann window before the FFT")
+    p_run.add_argument("--resume", metavar="DIR", help="continue the interrupted run in DIR (its checkpoint.npz)")
     output(p_run)
 
     p_val = sub.add_parser("validate", help="check the thesis's analytic formulas against ensembles; exit 1 on a failure")
@@ -108,6 +114,10 @@ def _parser() -> argparse.ArgumentParser:
     p_val.add_argument("--seed", type=int, default=0)
     p_val.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
     output(p_val)
+
+    p_merge = sub.add_parser("merge", help="merge the spectra.npz of runs over disjoint realizations into one")
+    p_merge.add_argument("inputs", nargs="+", metavar="RUN", help="run directories or spectra.npz files")
+    output(p_merge)
 
     p_bench = sub.add_parser("bench", help="scaling study of the three algorithms: bench.json, bench.png and a table")
     size = p_bench.add_mutually_exclusive_group()
@@ -158,15 +168,54 @@ def cmd_params(args) -> int:
     return 0
 
 
+RUN_DEFAULTS = {"seed": 0, "algorithm": "tree", "mode": "decoupled", "boundary": "open", "window": False}
+
+
 def cmd_run(args) -> int:
     from .devices import resolve_device
-    from .ensemble.pipeline import result_summary, run_ensemble
+    from .ensemble.pipeline import CHECKPOINT, read_checkpoint, run_ensemble
 
-    params = build_params(args)
     device = resolve_device(args.device)
-    out = _output_dir(args)
-    result = run_ensemble(params, seed=args.seed, algorithm=args.algorithm, mode=args.mode, boundary=args.boundary,
-                          device=device, batch=args.batch, progress=not args.no_progress, window=args.window)
+    if args.resume:
+        out = Path(args.resume)
+        if not (out / CHECKPOINT).is_file():
+            raise UsageError(f"--resume {args.resume}: no {CHECKPOINT} there to continue from")
+        meta, _ = read_checkpoint(out / CHECKPOINT)
+        # the checkpoint's run, with anything given on the command line on top (compared when resuming)
+        params = build_params(args, base=meta["params"])
+        settings = {k: meta[k] if getattr(args, k) is None else getattr(args, k) for k in RUN_DEFAULTS}
+        realizations = meta["realizations"] if args.realizations is None and args.first is None else _realizations(args, params)
+    else:
+        params = build_params(args)
+        settings = {k: v if getattr(args, k) is None else getattr(args, k) for k, v in RUN_DEFAULTS.items()}
+        realizations = _realizations(args, params)
+        out = _output_dir(args)
+    memory = None if args.memory_limit is None else _positive_gib(args.memory_limit)
+    result = run_ensemble(params, realizations=realizations, device=device, batch=args.batch,
+                          progress=not args.no_progress, checkpoint=out / CHECKPOINT, resume=bool(args.resume),
+                          memory_limit=memory, **settings)
+    write_outputs(result, out)
+    return 0
+
+
+def _realizations(args, params):
+    count = params.n_real if args.realizations is None else args.realizations
+    first = args.first or 0
+    if first < 0:
+        raise UsageError(f"--first {first}: the first realization index must be >= 0")
+    return range(first, first + count) if count > 0 else count  # count <= 0: run_ensemble names the error
+
+
+def _positive_gib(value: float) -> int:
+    if not value > 0:
+        raise UsageError(f"--memory-limit {value}: must be a positive number of GiB")
+    return int(value * 2**30)
+
+
+def write_outputs(result, out: Path) -> None:
+    """spectra.npz, summary.json and the two PNGs, and the summary table on stdout."""
+    from .ensemble.pipeline import result_summary
+
     result.save(out / "spectra.npz")
     summary = result_summary(result)
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
@@ -182,6 +231,17 @@ def cmd_run(args) -> int:
     for name, value, unit in rows:
         print(f"  {name:<20} {value:>14}  {unit}")
     print(f"wrote {out}/: spectra.npz summary.json accel_psd.png force_psd.png")
+
+
+def cmd_merge(args) -> int:
+    from .ensemble.pipeline import EnsembleResult
+
+    paths = [Path(p) / "spectra.npz" if Path(p).is_dir() else Path(p) for p in args.inputs]
+    missing = [str(p) for p in paths if not p.is_file()]
+    if missing:
+        raise UsageError(f"no spectra.npz at {', '.join(missing)}")
+    result = EnsembleResult.merge([EnsembleResult.load(p) for p in paths])
+    write_outputs(result, _output_dir(args))
     return 0
 
 
@@ -223,7 +283,8 @@ def cmd_bench(args) -> int:
 def main(argv=None) -> int:
     try:
         args = _parser().parse_args(argv)
-        return {"params": cmd_params, "run": cmd_run, "validate": cmd_validate, "bench": cmd_bench}[args.command](args)
+        return {"params": cmd_params, "run": cmd_run, "validate": cmd_validate, "bench": cmd_bench,
+                "merge": cmd_merge}[args.command](args)
     except UsageError as exc:
         print(f"mdroll: error: {exc}", file=sys.stderr)
         return 2

@@ -296,6 +296,8 @@ def contact_force(
         raise ParameterError(f"d = {d!r} is not allowed: the indentation must be positive and finite (m)")
     device = resolve_device(device if device is not None else device_of(lines) or "cpu")
     host_input = isinstance(lines, np.ndarray)
+    if not isinstance(lines, wp.array) and np.dtype(getattr(lines, "dtype", np.float64)) != np.float64:
+        raise ParameterError(f"lines must be float64 (the force path is float64 throughout), got {lines.dtype}")
     one_line = getattr(lines, "ndim", 2) == 1
     data = to_warp(np.atleast_2d(lines) if host_input else lines, device)
     if one_line:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,8 +43,9 @@ class EnsembleResult:
     accel_psd, accel_psd_stderr : (K,) the same for the acceleration, (m/s^2)^2 m.
     force_rms : RMS of F - mean F averaged over realizations, N.
     force_mean : mean force, N.
-    contact_lost_steps : steps with F = 0 summed over the ensemble (coupled mode).
+    contact_lost_steps : steps with F = 0 (the wheel off the rail) summed over the ensemble.
     timings : seconds per stage ("generate", "build", "force", "response", "spectra").
+    batch : realizations per batch; realizations : the realization indices, in order.
     """
 
     q: np.ndarray
@@ -64,6 +66,8 @@ class EnsembleResult:
     force_rms: float
     contact_lost_steps: int = 0
     timings: dict = field(default_factory=dict)
+    batch: int = 0
+    realizations: list = field(default_factory=list)
 
     def save(self, path) -> Path:
         """Write an ``.npz`` with the spectra, the parameters and the provenance."""
@@ -71,7 +75,8 @@ class EnsembleResult:
         meta = {
             "params": self.params.as_dict(),
             **{k: getattr(self, k) for k in ("n_real", "seed", "algorithm", "mode", "boundary", "device", "steps",
-                                               "force_mean", "force_rms", "contact_lost_steps", "timings")},
+                                               "force_mean", "force_rms", "contact_lost_steps", "timings", "batch",
+                                               "realizations")},
         }
         from .. import __version__
 
@@ -88,6 +93,39 @@ class EnsembleResult:
         meta.pop("mdroll_version", None)
         return cls(params=Params(**meta.pop("params")), **arrays, **meta)
 
+    @classmethod
+    def merge(cls, results: list["EnsembleResult"]) -> "EnsembleResult":
+        """One result from ensembles of disjoint realizations of the same run (say, one per
+        process): per-bin means and variances merged exactly (Chan et al.)."""
+        first = results[0]
+        same = ("params", "seed", "algorithm", "mode", "boundary", "steps")
+        for other in results[1:]:
+            differ = [k for k in same if getattr(other, k) != getattr(first, k)]
+            if differ:
+                raise ParameterError(f"cannot merge results that differ in {differ}")
+        indices = [i for r in results for i in r.realizations]
+        if len(set(indices)) != len(indices):
+            raise ParameterError("cannot merge results that share realizations (each would count twice)")
+        moments = {}
+        for name in ("force_psd", "accel_psd"):
+            m = RunningMoments(first.q.size)
+            for r in results:
+                err = getattr(r, name + "_stderr")
+                m.merge(r.n_real, getattr(r, name), err**2 * r.n_real * (r.n_real - 1))
+            moments[name] = m
+        n = sum(r.n_real for r in results)
+        return cls(
+            q=first.q, omega=first.omega, force_psd=moments["force_psd"].mean, force_psd_stderr=moments["force_psd"].stderr,
+            accel_psd=moments["accel_psd"].mean, accel_psd_stderr=moments["accel_psd"].stderr, n_real=n,
+            params=first.params, seed=first.seed, algorithm=first.algorithm, mode=first.mode, boundary=first.boundary,
+            device=",".join(sorted({r.device for r in results})), steps=first.steps,
+            force_mean=sum(r.force_mean * r.n_real for r in results) / n,
+            force_rms=sum(r.force_rms * r.n_real for r in results) / n,
+            contact_lost_steps=sum(r.contact_lost_steps for r in results),
+            timings={k: sum(r.timings.get(k, 0.0) for r in results) for k in STAGES}, batch=first.batch,
+            realizations=indices,
+        )
+
     def plot(self, quantity: str = "accel", path=None, ax=None):
         """Log-log ensemble mean PSD on omega with its standard-error band, in the style of the
         thesis's Figure 2: omega_0, q_min v0, the q^-(2H+3) slope and the eq 40 curve marked."""
@@ -96,13 +134,16 @@ class EnsembleResult:
         return plot_psd(self, quantity, path=path, ax=ax)
 
 
-def default_batch(params: Params, device: str) -> int:
-    """Realizations per batch that fit in half the free memory of the device (host RAM on CPU)."""
+def default_batch(params: Params, device: str, memory_limit: int | None = None) -> int:
+    """Realizations per batch that fit in half the free memory of the device (host RAM on CPU),
+    or in half of ``memory_limit`` bytes when that is smaller."""
     wp = warp()
     if device.startswith("cuda"):
         free = wp.get_device(device).free_memory
     else:
         free = _host_available_bytes()
+    if memory_limit is not None:
+        free = min(free, memory_limit)
     per_realization = BYTES_PER_POINT * params.n_points
     return max(1, int(0.5 * free // per_realization))
 
@@ -127,6 +168,9 @@ def _check_finite(values, what: str, stage: str, indices: np.ndarray) -> None:
         raise NonFiniteError(f"{what} is not finite in realization {int(indices[row])} at stage {stage!r}")
 
 
+CHECKPOINT = "checkpoint.npz"
+
+
 def run_ensemble(
     params: Params,
     seed: int = 0,
@@ -139,15 +183,23 @@ def run_ensemble(
     progress: bool = True,
     window: bool = False,
     leaf_size: int = 8,
+    checkpoint=None,
+    resume: bool = False,
+    memory_limit: int | None = None,
 ) -> EnsembleResult:
     """Run an ensemble and return its averaged force and acceleration spectra.
 
     Realizations (``params.n_real`` when None; an int R for 0..R-1, or a sequence of indices)
-    are processed in batches (sized from free device or host memory unless ``batch`` is given):
-    rough lines (section 3) -> force at d0 by ``algorithm`` and the wheel on the linearized
-    contact spring (``mode="decoupled"``, section 5.1), or the coupled dynamics of eq 13
-    (``mode="coupled"``) -> PSDs (section 6, optional Hann ``window``) -> running per-bin mean
-    and variance. Memory stays O(batch x n).
+    are processed in batches (sized from free device or host memory, capped by
+    ``memory_limit`` bytes, unless ``batch`` is given): rough lines (section 3) -> force at d0
+    by ``algorithm`` and the wheel on the linearized contact spring (``mode="decoupled"``,
+    section 5.1), or the coupled dynamics of eq 13 (``mode="coupled"``) -> PSDs (section 6,
+    optional Hann ``window``) -> running per-bin mean and variance. Memory stays O(batch x n).
+
+    ``checkpoint``: a file the running accumulators are written to after every batch,
+    atomically (temporary file, then rename). With ``resume=True`` an existing checkpoint of
+    the same run is continued where it stopped (a different run is refused, naming the
+    differences); the result is the uninterrupted run's to rounding.
     """
     wp = warp()
     check_choice("algorithm", algorithm, ALGORITHMS)
@@ -156,19 +208,26 @@ def run_ensemble(
     seed = check_seed(seed)
     indices = realization_indices(params.n_real if realizations is None else realizations)
     device = resolve_device(device)
+    if memory_limit is not None and (isinstance(memory_limit, bool) or not isinstance(memory_limit, (int, np.integer))
+                                     or memory_limit < 1):
+        raise ParameterError(f"memory_limit = {memory_limit!r} is not allowed: it must be a positive number of bytes")
     if batch is None:
-        batch = default_batch(params, device)
+        batch = default_batch(params, device, memory_limit)
     if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)) or batch < 1:
         raise ParameterError(f"batch = {batch!r} is not allowed: it must be a positive integer")
 
+    key = {"params": params.as_dict(), "seed": seed, "realizations": indices.tolist(), "algorithm": algorithm,
+           "mode": mode, "boundary": boundary, "window": window, "leaf_size": leaf_size}
+    totals = _Totals()
+    if resume:
+        if checkpoint is None or not Path(checkpoint).exists():
+            raise ParameterError(f"cannot resume: no checkpoint at {checkpoint!s}")
+        totals = _Totals.load(checkpoint, key)
     d0 = params.d0
     h_bound = H_BOUND_SIGMAS * params.h0
-    timings = dict.fromkeys(STAGES, 0.0)
-    force_moments = accel_moments = None
-    force_mean_sum = force_rms_sum = 0.0
-    lost_total = 0
-    steps = None
+    timings = totals.timings
     bar = progress_bar(len(indices), progress)
+    bar.update(totals.done)
 
     def stage(name, fn):
         synchronize(device)
@@ -178,45 +237,111 @@ def run_ensemble(
         timings[name] += time.perf_counter() - t0
         return out
 
-    for start in range(0, len(indices), batch):
+    for start in range(totals.done, len(indices), batch):
         idx = indices[start:start + batch]
         lines = stage("generate", lambda: rough_lines(params, seed, idx, device=device))
         if not isinstance(lines, wp.array):
             lines = wp.array(lines, dtype=wp.float64, device="cpu", copy=False)
         prepared = stage("build", lambda: prepare_lines(lines, params, algorithm, boundary, d0, device, leaf_size, h_bound))
-        steps = prepared.steps
+        totals.steps = prepared.steps
         if mode == "decoupled":
             force = stage("force", lambda: launch_force(prepared, params, algorithm, d0, device))
             accel = stage("response", lambda: _decoupled(force, params, device))
         else:
-            force, accel, lost = stage("response", lambda: coupled_series(prepared, params, algorithm, device))
-            lost_total += lost
+            force, accel, _ = stage("response", lambda: coupled_series(prepared, params, algorithm, device))
         force_rows = array_rows(force, device)
         _check_finite(force_rows, "force", "force" if mode == "decoupled" else "response", idx)
         force_psd = stage("spectra", lambda: psd_rows(force, params.dx, device, window))
         accel_psd = stage("spectra", lambda: psd_rows(accel, params.dx, device, window))
         _check_finite(force_psd, "force PSD", "spectra", idx)
         _check_finite(accel_psd, "acceleration PSD", "spectra", idx)
-        if force_moments is None:
-            xp = array_module(force_psd)
-            force_moments = RunningMoments(force_psd.shape[1], xp)
-            accel_moments = RunningMoments(accel_psd.shape[1], xp)
-        stage("spectra", lambda: (force_moments.add(force_psd), accel_moments.add(accel_psd)))
-        force_mean_sum += float(force_rows.mean(axis=1).sum())
-        force_rms_sum += float(force_rows.std(axis=1).sum())
+        stage("spectra", lambda: totals.add(force_psd, accel_psd, force_rows))
+        if checkpoint is not None:
+            totals.save(checkpoint, key)
         bar.update(len(idx))
         del lines, prepared, force, accel
     bar.close()
 
-    q = wavenumbers(steps, params.dx)
+    q = wavenumbers(totals.steps, params.dx)
+    n = len(indices)
     return EnsembleResult(
         q=q, omega=q * params.v0,
-        force_psd=force_moments.mean, force_psd_stderr=force_moments.stderr,
-        accel_psd=accel_moments.mean, accel_psd_stderr=accel_moments.stderr,
-        n_real=len(indices), params=params, seed=seed, algorithm=algorithm, mode=mode, boundary=boundary,
-        device=device, steps=steps, force_mean=force_mean_sum / len(indices), force_rms=force_rms_sum / len(indices),
-        contact_lost_steps=lost_total, timings=timings,
+        force_psd=totals.force.mean, force_psd_stderr=totals.force.stderr,
+        accel_psd=totals.accel.mean, accel_psd_stderr=totals.accel.stderr,
+        n_real=n, params=params, seed=seed, algorithm=algorithm, mode=mode, boundary=boundary,
+        device=device, steps=totals.steps, force_mean=totals.force_mean_sum / n, force_rms=totals.force_rms_sum / n,
+        contact_lost_steps=totals.lost, timings=timings, batch=int(batch), realizations=indices.tolist(),
     )
+
+
+@dataclass
+class _Totals:
+    """What a run has accumulated: PSD moments, force sums, contact-loss count, timings, and how
+    many realizations (from the start of the list) are done."""
+
+    force: RunningMoments | None = None
+    accel: RunningMoments | None = None
+    done: int = 0
+    steps: int | None = None
+    force_mean_sum: float = 0.0
+    force_rms_sum: float = 0.0
+    lost: int = 0
+    timings: dict = field(default_factory=lambda: dict.fromkeys(STAGES, 0.0))
+
+    def add(self, force_psd, accel_psd, force_rows) -> None:
+        if self.force is None:
+            xp = array_module(force_psd)
+            self.force, self.accel = RunningMoments(force_psd.shape[1], xp), RunningMoments(accel_psd.shape[1], xp)
+        self.force.add(force_psd)
+        self.accel.add(accel_psd)
+        self.force_mean_sum += float(force_rows.mean(axis=1).sum())
+        self.force_rms_sum += float(force_rows.std(axis=1).sum())
+        self.lost += int((force_rows <= 0.0).sum())
+        self.done += force_rows.shape[0]
+
+    def save(self, path, key: dict) -> None:
+        """Write the totals and the run's identity ``key`` to ``path`` atomically."""
+        from .. import __version__
+
+        path = Path(path)
+        meta = {**key, "done": self.done, "steps": self.steps, "force_mean_sum": self.force_mean_sum,
+                "force_rms_sum": self.force_rms_sum, "lost": self.lost, "timings": self.timings, "count": self.force.count,
+                "versions": {"mdroll": __version__, "warp": warp().config.version, "numpy": np.__version__}}
+        tmp = path.with_name(path.name + ".tmp")
+        with open(tmp, "wb") as f:
+            np.savez(f, meta=json.dumps(meta), force_mean=self.force.mean, force_m2=self.force.m2,
+                     accel_mean=self.accel.mean, accel_m2=self.accel.m2)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+
+    @classmethod
+    def load(cls, path, key: dict) -> "_Totals":
+        """The totals saved at ``path``; refuses a checkpoint of a different run, naming what differs."""
+        meta, arrays = read_checkpoint(path)
+        differences = [f"{k}: {meta['params'][k]!r} (checkpoint) vs {v!r} (now)"
+                       for k, v in key["params"].items() if meta["params"].get(k) != v]
+        differences += [f"{k}: {_short(meta.get(k))} (checkpoint) vs {_short(v)} (now)"
+                        for k, v in key.items() if k != "params" and meta.get(k) != v]
+        if differences:
+            raise ParameterError(f"cannot resume {path}: the run differs from the checkpoint: " + "; ".join(differences))
+        totals = cls(done=meta["done"], steps=meta["steps"], force_mean_sum=meta["force_mean_sum"],
+                     force_rms_sum=meta["force_rms_sum"], lost=meta["lost"], timings=meta["timings"])
+        totals.force, totals.accel = RunningMoments(arrays["force_mean"].size), RunningMoments(arrays["accel_mean"].size)
+        totals.force.merge(meta["count"], arrays["force_mean"], arrays["force_m2"])
+        totals.accel.merge(meta["count"], arrays["accel_mean"], arrays["accel_m2"])
+        return totals
+
+
+def read_checkpoint(path) -> tuple[dict, dict]:
+    """The metadata (run identity, progress, versions) and the accumulator arrays of a checkpoint."""
+    with np.load(path) as data:
+        return json.loads(str(data["meta"])), {k: data[k] for k in data.files if k != "meta"}
+
+
+def _short(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 #: Steps per chunk of the parallel decoupled response.

@@ -90,9 +90,16 @@ class RunningMoments:
         return to_host(self._m2)
 
     def add(self, rows) -> None:
-        n_b = rows.shape[0]
+        """Merge a batch of rows (realizations x bins)."""
         mean_b = rows.mean(axis=0)
-        m2_b = ((rows - mean_b) ** 2).sum(axis=0)
+        self.merge(rows.shape[0], mean_b, ((rows - mean_b) ** 2).sum(axis=0))
+
+    def merge(self, n_b: int, mean_b, m2_b) -> None:
+        """Merge the moments of another set of ``n_b`` samples (Chan et al.): count, mean, M2."""
+        if n_b == 0:
+            return
+        xp = array_module(self._mean)
+        mean_b, m2_b = xp.asarray(mean_b), xp.asarray(m2_b)
         total = self.count + n_b
         delta = mean_b - self._mean
         self._mean = self._mean + delta * (n_b / total)
