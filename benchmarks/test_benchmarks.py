@@ -7,7 +7,7 @@ is synchronized inside the timed call."""
 import pytest
 
 from mdroll import ALGORITHMS, Params, rough_lines, run_ensemble
-from mdroll.devices import synchronize, warp
+from mdroll.devices import synchronize, to_warp
 from mdroll.ensemble.force import launch_force, prepare_lines
 from mdroll.ensemble.pipeline import coupled_series
 from mdroll.ensemble.spectra import psd_rows
@@ -37,9 +37,7 @@ def _rounds(benchmark, device, fn, setup):
 
 
 def _lines(params, seed, count, device):
-    wp = warp()
-    lines = rough_lines(params, seed, count, device=device)
-    return lines if isinstance(lines, wp.array) else wp.array(lines, dtype=wp.float64, device="cpu", copy=False)
+    return to_warp(rough_lines(params, seed, count, device=device), device)
 
 
 def test_generate(benchmark, device, log2n):
@@ -72,10 +70,10 @@ def test_force(benchmark, device, log2n, algorithm):
 def test_coupled_dynamics(benchmark, device, log2n, algorithm):
     params, count = _setup(device, log2n, algorithm, kind=f"coupled-{algorithm}")
     benchmark.group = f"coupled {device} n=2^{log2n}"
-    force, accel, lost = _rounds(benchmark, device, lambda prepared: coupled_series(prepared, params, algorithm, device),
+    force, accel = _rounds(benchmark, device, lambda prepared: coupled_series(prepared, params, algorithm, device),
                                  lambda seed: prepare_lines(_lines(params, seed, count, device), params, algorithm,
                                                             "periodic", params.d0, device))
-    assert lost == 0 and accel.shape == force.shape
+    assert (force.numpy() > 0).all() and accel.shape == force.shape  # contact never lost
 
 
 def test_spectra(benchmark, device, log2n):

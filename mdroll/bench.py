@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .devices import resolve_device, synchronize, usable_devices, warp
+from .devices import resolve_device, synchronize, to_warp, usable_devices, warp
 from .ensemble.force import ALGORITHMS, launch_force, prepare_lines
 from .ensemble.lines import rough_lines
 from .ensemble.pipeline import H_BOUND_SIGMAS, run_ensemble
@@ -108,17 +108,17 @@ def force_time(params: Params, algorithm: str, realizations: int, device: str, r
     d = params.d0
     h_bound = H_BOUND_SIGMAS * params.h0
 
-    def prepared(seed):
-        lines = rough_lines(params, seed, realizations, device=device)
-        lines = lines if isinstance(lines, wp.array) else wp.array(lines, dtype=wp.float64, device="cpu", copy=False)
-        return prepare_lines(lines, params, algorithm, boundary, d, device, h_max=h_bound), lines
+    def fresh_lines(seed):
+        return to_warp(rough_lines(params, seed, realizations, device=device), device)
 
-    first, _ = prepared(0)
+    def build(lines):
+        return prepare_lines(lines, params, algorithm, boundary, d, device, h_max=h_bound)
+
+    first = build(fresh_lines(0))
     out = wp.empty((realizations, first.steps), dtype=wp.float64, device=device)
-    force_s, times = timed(lambda arg: launch_force(arg[0], params, algorithm, d, device, out=out), device, repeats,
-                           setup=lambda i: prepared(i + 1))
-    build_s, _ = timed(lambda lines: prepare_lines(lines, params, algorithm, boundary, d, device, h_max=h_bound), device,
-                       repeats, setup=lambda i: prepared(i + 1)[1])
+    force_s, times = timed(lambda prepared: launch_force(prepared, params, algorithm, d, device, out=out), device,
+                           repeats, setup=lambda i: build(fresh_lines(i + 1)))
+    build_s, _ = timed(build, device, repeats, setup=lambda i: fresh_lines(i + 1))
     steps = first.steps
     return {"algorithm": algorithm, "device": device, "n": params.n_points, "dx": params.dx, "L": params.length,
             "realizations": realizations, "steps": steps, "force_s": force_s, "force_times_s": times, "build_s": build_s,
@@ -145,9 +145,7 @@ def compile_time(device: str) -> float:
 def memory_per_realization(params: Params, algorithm: str, device: str) -> int:
     """Bytes of the device arrays one realization occupies in a batch (lines, prefix sums, tree,
     bounds, force, acceleration, two half spectra), counted from the arrays themselves."""
-    wp = warp()
-    lines = rough_lines(params, 0, 1, device=device)
-    lines = lines if isinstance(lines, wp.array) else wp.array(lines, dtype=wp.float64, device="cpu", copy=False)
+    lines = to_warp(rough_lines(params, 0, 1, device=device), device)
     prepared = prepare_lines(lines, params, algorithm, "open", params.d0, device, h_max=H_BOUND_SIGMAS * params.h0)
     arrays = [prepared.lines, prepared.bounds, prepared.prefix, prepared.tree]
     total = sum(a.capacity for a in arrays if a is not None) + (0 if prepared.lines is lines else lines.capacity)

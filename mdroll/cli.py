@@ -105,10 +105,7 @@ def _parser() -> argparse.ArgumentParser:
     output(p_run)
 
     p_val = sub.add_parser("validate", help="check the thesis's analytic formulas against ensembles; exit 1 on a failure")
-    size = p_val.add_mutually_exclusive_group()
-    size.add_argument("--quick", dest="size", action="store_const", const="quick",
-                      help="small ensembles, minutes on a 2-core CPU (default)")
-    size.add_argument("--full", dest="size", action="store_const", const="full", help="thesis-scale ensembles (GPU)")
+    size_options(p_val, quick="small ensembles, minutes on a 2-core CPU (default)", full="thesis-scale ensembles (GPU)")
     p_val.add_argument("--only", action="append", metavar="NAME", help="run only this check (repeatable): "
                        + ", ".join(_check_names()))
     p_val.add_argument("--seed", type=int, default=0)
@@ -120,10 +117,7 @@ def _parser() -> argparse.ArgumentParser:
     output(p_merge)
 
     p_bench = sub.add_parser("bench", help="scaling study of the three algorithms: bench.json, bench.png and a table")
-    size = p_bench.add_mutually_exclusive_group()
-    size.add_argument("--quick", dest="size", action="store_const", const="quick",
-                      help="small sizes, minutes on a 2-core CPU (default)")
-    size.add_argument("--full", dest="size", action="store_const", const="full", help="the GPU machine's study")
+    size_options(p_bench, quick="small sizes, minutes on a 2-core CPU (default)", full="the GPU machine's study")
     p_bench.add_argument("--device", action="append", help="cpu, cuda or cuda:N (repeatable; default every available one)")
     output(p_bench)
     return parser
@@ -133,6 +127,13 @@ def _check_names() -> list[str]:
     from .validation.checks import CHECKS
 
     return list(CHECKS)
+
+
+def size_options(p, quick: str, full: str) -> None:
+    """``--quick`` (the default) or ``--full``, into ``args.size``."""
+    size = p.add_mutually_exclusive_group()
+    size.add_argument("--quick", dest="size", action="store_const", const="quick", help=quick)
+    size.add_argument("--full", dest="size", action="store_const", const="full", help=full)
 
 
 def output(p) -> None:

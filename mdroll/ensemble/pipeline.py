@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..devices import resolve_device, synchronize, warp
+from ..devices import resolve_device, synchronize, to_warp, warp
 from ..params import ParameterError, Params
 from .force import ALGORITHMS, BOUNDARIES, check_choice, launch_force, prepare_lines
 from .lines import check_seed, realization_indices, rough_lines
@@ -201,7 +201,6 @@ def run_ensemble(
     the same run is continued where it stopped (a different run is refused, naming the
     differences); the result is the uninterrupted run's to rounding.
     """
-    wp = warp()
     check_choice("algorithm", algorithm, ALGORITHMS)
     check_choice("mode", mode, MODES)
     check_choice("boundary", boundary, BOUNDARIES)
@@ -239,16 +238,14 @@ def run_ensemble(
 
     for start in range(totals.done, len(indices), batch):
         idx = indices[start:start + batch]
-        lines = stage("generate", lambda: rough_lines(params, seed, idx, device=device))
-        if not isinstance(lines, wp.array):
-            lines = wp.array(lines, dtype=wp.float64, device="cpu", copy=False)
+        lines = stage("generate", lambda: to_warp(rough_lines(params, seed, idx, device=device), device))
         prepared = stage("build", lambda: prepare_lines(lines, params, algorithm, boundary, d0, device, leaf_size, h_bound))
         totals.steps = prepared.steps
         if mode == "decoupled":
             force = stage("force", lambda: launch_force(prepared, params, algorithm, d0, device))
             accel = stage("response", lambda: _decoupled(force, params, device))
         else:
-            force, accel, _ = stage("response", lambda: coupled_series(prepared, params, algorithm, device))
+            force, accel = stage("response", lambda: coupled_series(prepared, params, algorithm, device))
         force_rows = array_rows(force, device)
         _check_finite(force_rows, "force", "force" if mode == "decoupled" else "response", idx)
         force_psd = stage("spectra", lambda: psd_rows(force, params.dx, device, window))
@@ -376,15 +373,14 @@ def _decoupled(force, params: Params, device: str):
 
 
 def coupled_series(prepared, params: Params, algorithm: str, device: str, d_start: float | None = None):
-    """Force (N) and acceleration d'' (m/s^2) series of eq 13 for prepared lines, and the number
-    of steps without contact; the wheel starts at indentation ``d_start`` (default d0) at rest."""
+    """Force (N) and acceleration d'' (m/s^2) series of eq 13 for prepared lines; the wheel
+    starts at indentation ``d_start`` (default d0) at rest. Contact is lost where F = 0."""
     from ..kernels.dynamics import DIRECT, EDGE, TREE, coupled_response
 
     wp = warp()
     rows = prepared.lines.shape[0]
     force = wp.empty((rows, prepared.steps), dtype=wp.float64, device=device)
     accel = wp.empty_like(force)
-    lost = wp.zeros(rows, dtype=wp.int32, device=device)
     empty_tree = wp.empty((rows, 1), dtype=wp.vec2d, device=device)
     empty_prefix = wp.empty((rows, 1), dtype=wp.float64, device=device)
     code = {"direct": DIRECT, "tree": TREE, "edge": EDGE}[algorithm]
@@ -396,10 +392,10 @@ def coupled_series(prepared, params: Params, algorithm: str, device: str, d_star
                 prepared.tree if prepared.tree is not None else empty_tree,
                 prepared.level_offsets if prepared.level_offsets is not None else wp.zeros(1, dtype=wp.int32, device=device),
                 prepared.bounds, prepared.top_level, prepared.leaf_size, prepared.n_work, prepared.first, prepared.steps,
-                params.d0 if d_start is None else d_start, params.dx, params.R, params.E_star, params.F_N, 1.0 / params.m, params.dt, force, accel, lost],
+                params.d0 if d_start is None else d_start, params.dx, params.R, params.E_star, params.F_N, 1.0 / params.m, params.dt, force, accel],
         device=device,
     )
-    return force, accel, int(lost.numpy().sum())
+    return force, accel
 
 
 class _NoBar:
