@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .devices import resolve_device, synchronize, to_warp, usable_devices, warp
-from .ensemble.force import ALGORITHMS, launch_force, prepare_lines
+from .ensemble.force import ALGORITHMS, DEFAULT_BAND_LIMIT, DEFAULT_LEAF_SIZE, launch_force, prepare_lines
 from .ensemble.lines import rough_lines
 from .ensemble.pipeline import H_BOUND_SIGMAS, run_ensemble
 from .params import Params
@@ -102,8 +102,9 @@ def fit_exponent(n, t) -> tuple[float, float]:
 
 
 def force_time(params: Params, algorithm: str, realizations: int, device: str, repeats: int,
-               boundary: str = "periodic") -> dict:
-    """Median time (s) of the force launch alone and of the per-line build, on fresh lines each repeat."""
+               boundary: str = "periodic", leaf_size: int = DEFAULT_LEAF_SIZE, band_limit: int = DEFAULT_BAND_LIMIT) -> dict:
+    """Median time (s) of the force launch alone and of the per-line build, on fresh lines each
+    repeat; ``leaf_size`` and ``band_limit`` tune the tree (:func:`mdroll.contact_force`)."""
     wp = warp()
     d = params.d0
     h_bound = H_BOUND_SIGMAS * params.h0
@@ -112,7 +113,7 @@ def force_time(params: Params, algorithm: str, realizations: int, device: str, r
         return to_warp(rough_lines(params, seed, realizations, device=device), device)
 
     def build(lines):
-        return prepare_lines(lines, params, algorithm, boundary, d, device, h_max=h_bound)
+        return prepare_lines(lines, params, algorithm, boundary, d, device, leaf_size, h_bound, band_limit)
 
     first = build(fresh_lines(0))
     out = wp.empty((realizations, first.steps), dtype=wp.float64, device=device)
@@ -122,7 +123,7 @@ def force_time(params: Params, algorithm: str, realizations: int, device: str, r
     steps = first.steps
     return {"algorithm": algorithm, "device": device, "n": params.n_points, "dx": params.dx, "L": params.length,
             "realizations": realizations, "steps": steps, "force_s": force_s, "force_times_s": times, "build_s": build_s,
-            "ns_per_step": force_s / (realizations * steps) * 1e9,
+            "leaf_size": leaf_size, "band_limit": band_limit, "ns_per_step": force_s / (realizations * steps) * 1e9,
             "springs_in_contact": params.springs_in_contact}
 
 
@@ -211,9 +212,10 @@ def run_study(size: str = "quick", devices=None, progress=print) -> dict:
 
 
 def thesis_scale(device: str, repeats: int, progress=print) -> dict:
-    """300 x 2^20, open boundary: force-only per algorithm and warm end-to-end per algorithm."""
+    """300 x 2^20, open boundary: force-only, warm end-to-end (decoupled) and coupled end-to-end
+    (one run, kernels already compiled) per algorithm."""
     p = Params(L=5.24288, n_real=300)
-    out = {"force": {}, "end_to_end": {}}
+    out = {"force": {}, "end_to_end": {}, "coupled": {}}
     for algorithm in ALGORITHMS:
         out["force"][algorithm] = force_time(p, algorithm, p.n_real, device, repeats, boundary="open")
         progress(f"{device} thesis force {algorithm}: {out['force'][algorithm]['force_s'] * 1e3:.2f} ms")
@@ -222,6 +224,12 @@ def thesis_scale(device: str, repeats: int, progress=print) -> dict:
         total, times = timed(lambda: run_ensemble(p, algorithm=algorithm, device=device, progress=False), device, 3)
         out["end_to_end"][algorithm] = {"total_s": total, "times_s": times}
         progress(f"{device} thesis end to end {algorithm}: {total:.3f} s")
+    for algorithm in ALGORITHMS:
+        t0 = time.perf_counter()  # run_ensemble synchronizes the device after every stage
+        timings = run_ensemble(p, algorithm=algorithm, mode="coupled", device=device, progress=False).timings
+        out["coupled"][algorithm] = {"total_s": time.perf_counter() - t0, "timings_s": timings}
+        progress(f"{device} thesis coupled {algorithm}: {out['coupled'][algorithm]['total_s']:.3f} s "
+                 f"(dynamics {timings['response']:.3f} s)")
     return out
 
 

@@ -41,8 +41,11 @@ def test_tree_equals_direct(device, boundary, H, h0):
     lines = _lines(p, 7, 3, device)
     direct = to_numpy(contact_force(lines, p, "direct", boundary, device=device))
     for leaf_size in (1, 3, 8, 32):
-        tree = to_numpy(contact_force(lines, p, "tree", boundary, device=device, leaf_size=leaf_size))
-        assert np.max(np.abs(tree - direct)) <= 1e-12 * p.F_N, leaf_size
+        # band_limit 0: every band by the shared 8-step traversal; 10^6: every band summed directly
+        for band_limit in (0, 10**6):
+            tree = to_numpy(contact_force(lines, p, "tree", boundary, device=device, leaf_size=leaf_size,
+                                          band_limit=band_limit))
+            assert np.max(np.abs(tree - direct)) <= 1e-12 * p.F_N, (leaf_size, band_limit)
 
 
 def test_tree_equals_direct_with_gaps_and_shallow_indentation(device):
@@ -51,8 +54,10 @@ def test_tree_equals_direct_with_gaps_and_shallow_indentation(device):
     lines = _lines(p, 3, 2, device)
     for d in (p.d0, 3e-6):
         direct = to_numpy(contact_force(lines, p, "direct", "periodic", d=d, device=device))
-        tree = to_numpy(contact_force(lines, p, "tree", "periodic", d=d, device=device, leaf_size=4))
-        assert np.max(np.abs(tree - direct)) <= 1e-12 * p.F_N
+        for band_limit in (0, 10**6):
+            tree = to_numpy(contact_force(lines, p, "tree", "periodic", d=d, device=device, leaf_size=4,
+                                          band_limit=band_limit))
+            assert np.max(np.abs(tree - direct)) <= 1e-12 * p.F_N
 
 
 @pytest.mark.parametrize("dx", [5e-6, 20e-6])
@@ -148,6 +153,7 @@ def test_cpu_and_cuda_agree(cuda_devices):
         ({"d": -1e-6}, "d"),
         ({"d": float("nan")}, "d"),
         ({"leaf_size": 0}, "leaf_size"),
+        ({"band_limit": -1}, "band_limit"),
     ],
 )
 def test_bad_arguments(kwargs, name):

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from reference import psd, to_numpy
+from reference import direct_force, psd, to_numpy
 
 from mdroll import EnsembleResult, Params, contact_force, rough_lines, run_ensemble, step_range
 from mdroll.ensemble.pipeline import H_BOUND_SIGMAS
@@ -78,6 +78,44 @@ def test_coupled_smooth_line_oscillates_at_omega_0_without_energy_growth(device)
     last_cycle = np.abs(a[crossings[-3]:]).max()
     # symplectic Euler keeps the amplitude to O(omega dt) = 8e-4; forward Euler would grow it by 3 %
     assert last_cycle <= first_cycle * (1 + 5e-3)
+
+
+def _coupled_indentation(accel, params, d_start):
+    """d(t) before each step, rebuilt from the recorded d'' with the same semi-implicit Euler step."""
+    d = np.empty_like(accel)
+    depth, rate = d_start, 0.0
+    for s, a in enumerate(accel):
+        d[s] = depth
+        rate += params.dt * a
+        depth += params.dt * rate
+    return d
+
+
+@pytest.mark.parametrize("algorithm", ["direct", "tree", "edge"])
+def test_coupled_force_is_the_force_at_the_current_indentation(device, algorithm):
+    """Eq 13 step by step: every recorded F equals the numpy spring sum (eq 10-12; eq 49 for
+    edge) at the wheel's position and at the indentation the recorded d'' implies. On CUDA the
+    block's lanes share each step's sum, on the CPU one thread does it all."""
+    from mdroll.ensemble.force import prepare_lines
+    from mdroll.ensemble.pipeline import coupled_series
+    from mdroll.validation.formulas import edge_force
+
+    p = Params(L=0.03, dx=20e-6, h0=2e-6, H=0.5)
+    lines = rough_lines(p, seed=5, realizations=2, device=device)
+    d_start = p.d0 * 1.02  # starts off equilibrium: d swings by ~2 um
+    prepared = prepare_lines(lines, p, algorithm, "open", p.d0, device, 4)
+    force, accel = coupled_series(prepared, p, algorithm, device, d_start=d_start)
+    force, accel, host = force.numpy(), accel.numpy(), to_numpy(lines)
+    for r in range(2):
+        d = _coupled_indentation(accel[r], p, d_start)
+        assert np.ptp(d) > 1e-6
+        steps = np.arange(prepared.steps)
+        if algorithm == "edge":
+            steps = steps[:: prepared.steps // 40]
+            reference = np.array([edge_force(p, host[r], d[s])[prepared.first + s] for s in steps])
+        else:
+            reference = direct_force(host[r], p, (prepared.first + steps) * p.dx, d[:, None])
+        assert np.max(np.abs(force[r, steps] - reference)) <= 1e-11 * p.F_N
 
 
 def test_coupled_and_decoupled_agree_above_resonance():

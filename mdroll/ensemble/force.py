@@ -19,6 +19,9 @@ from ..params import ParameterError, Params
 ALGORITHMS = ("tree", "direct", "edge")
 BOUNDARIES = ("open", "periodic")
 DEFAULT_LEAF_SIZE = 8
+#: Band width (springs) above which the tree kernel's main path descends the tree instead of
+#: summing the band directly (kernels/tree.py).
+DEFAULT_BAND_LIMIT = 64
 
 
 def check_choice(name: str, value, allowed) -> str:
@@ -93,6 +96,7 @@ class PreparedLines:
     level_offsets: object = None
     top_level: int = 0
     leaf_size: int = DEFAULT_LEAF_SIZE
+    band_limit: int = DEFAULT_BAND_LIMIT
 
 
 def _row_bounds(lines, device):
@@ -178,6 +182,7 @@ def prepare_lines(
     device: str,
     leaf_size: int = DEFAULT_LEAF_SIZE,
     h_max: float | None = None,
+    band_limit: int = DEFAULT_BAND_LIMIT,
 ) -> PreparedLines:
     """Bounds, wrapped copy, prefix sums and tree as the algorithm needs them (see PreparedLines).
 
@@ -199,7 +204,8 @@ def prepare_lines(
         first = wheel_margin(params, d, h_max)
         work = wp.empty((rows, n + 2 * first), dtype=wp.float64, device=device)
         wp.launch(periodic_extend, dim=work.shape, inputs=[lines, n, first, work], device=device)
-    prepared = PreparedLines(lines=work, n_work=work.shape[1], first=first, steps=steps, bounds=bounds, leaf_size=leaf_size)
+    prepared = PreparedLines(lines=work, n_work=work.shape[1], first=first, steps=steps, bounds=bounds, leaf_size=leaf_size,
+                             band_limit=band_limit)
     if algorithm in ("tree", "edge"):
         prepared.prefix = _prefix_sums(work, device)
     if algorithm == "tree":
@@ -212,6 +218,21 @@ def prepare_lines(
             )
         prepared.tree, prepared.level_offsets, prepared.top_level = _min_max_tree(work, leaf_size, device)
     return prepared
+
+
+def edge_geometry(params: Params, d: float):
+    """The host twin of :func:`mdroll.kernels.edge.edge_geometry`: eq 49's constants at indentation d (m)."""
+    from ..kernels.edge import EdgeGeometry
+
+    a = math.sqrt(d * params.R)
+    alpha = a / params.dx
+    geometry = EdgeGeometry()
+    geometry.whole = int(math.floor(alpha))
+    geometry.fraction = alpha - geometry.whole
+    geometry.hertz = 4.0 * params.E_star * a * a * a / (3.0 * params.R)
+    geometry.tip = params.E_star * params.R / (4.0 * a)
+    geometry.dx_E_star = params.E_star * params.dx
+    return geometry
 
 
 def launch_force(prepared: PreparedLines, params: Params, algorithm: str, d: float, device: str, out=None):
@@ -235,11 +256,12 @@ def launch_force(prepared: PreparedLines, params: Params, algorithm: str, d: flo
         inputs = [p.lines, p.bounds, p.n_work, p.first, p.steps, d, curvature, params.k_spring, force]
         kernel = contact_force_direct
     elif algorithm == "tree":
-        inputs = [p.lines, p.prefix, p.tree, p.level_offsets, p.top_level, p.leaf_size, p.n_work, p.first, p.steps,
+        inputs = [p.lines, p.prefix, p.tree, p.level_offsets, p.top_level, p.leaf_size, p.band_limit, p.n_work, p.first,
+                  p.steps,
                   d, curvature, params.k_spring, force]
         kernel = contact_force_tree
     else:
-        inputs = [p.prefix, p.first, d, params.dx, params.R, params.E_star, force]
+        inputs = [p.prefix, p.first, edge_geometry(params, d), force]
         kernel = contact_force_edge
         dim = force.shape
     wp.launch(kernel, dim=dim, inputs=inputs, device=device)
@@ -255,6 +277,7 @@ def contact_force(
     device: str | None = None,
     *,
     leaf_size: int = DEFAULT_LEAF_SIZE,
+    band_limit: int = DEFAULT_BAND_LIMIT,
     h_max: float | None = None,
 ):
     """Contact force F[r, s] (N) of each line r at each wheel step s, at constant indentation d.
@@ -277,6 +300,9 @@ def contact_force(
         Where to compute; default the device of ``lines``.
     leaf_size : int
         Springs per tree leaf (tree only).
+    band_limit : int
+        Tree only: bands of at most this many springs are summed directly, wider ones by a
+        traversal shared by 8 steps (a tuning knob; the result is the same to rounding).
     h_max : float, optional
         Height bound (m) that places the open-boundary wheel (default: max of ``lines``).
 
@@ -291,6 +317,8 @@ def contact_force(
     check_choice("boundary", boundary, BOUNDARIES)
     if isinstance(leaf_size, bool) or not isinstance(leaf_size, (int, np.integer)) or leaf_size < 1:
         raise ParameterError(f"leaf_size = {leaf_size!r} is not allowed: it must be a positive integer")
+    if isinstance(band_limit, bool) or not isinstance(band_limit, (int, np.integer)) or band_limit < 0:
+        raise ParameterError(f"band_limit = {band_limit!r} is not allowed: it must be an integer >= 0 (springs)")
     d = params.d0 if d is None else d
     if isinstance(d, bool) or not isinstance(d, (int, float, np.floating, np.integer)) or not (math.isfinite(d) and d > 0):
         raise ParameterError(f"d = {d!r} is not allowed: the indentation must be positive and finite (m)")
@@ -308,7 +336,7 @@ def contact_force(
         )
     if data.dtype != wp.float64:
         raise ParameterError(f"lines must be float64 (the force path is float64 throughout), got {data.dtype}")
-    prepared = prepare_lines(data, params, algorithm, boundary, float(d), device, int(leaf_size), h_max)
+    prepared = prepare_lines(data, params, algorithm, boundary, float(d), device, int(leaf_size), h_max, int(band_limit))
     force = launch_force(prepared, params, algorithm, float(d), device)
     if host_input and device == "cpu":
         out = force.numpy()

@@ -375,7 +375,7 @@ def _decoupled(force, params: Params, device: str):
 def coupled_series(prepared, params: Params, algorithm: str, device: str, d_start: float | None = None):
     """Force (N) and acceleration d'' (m/s^2) series of eq 13 for prepared lines; the wheel
     starts at indentation ``d_start`` (default d0) at rest. Contact is lost where F = 0."""
-    from ..kernels.dynamics import DIRECT, EDGE, TREE, coupled_response
+    from ..kernels.dynamics import COUPLED_LANES, DIRECT, EDGE, TREE, coupled_response
 
     wp = warp()
     rows = prepared.lines.shape[0]
@@ -384,9 +384,10 @@ def coupled_series(prepared, params: Params, algorithm: str, device: str, d_star
     empty_tree = wp.empty((rows, 1), dtype=wp.vec2d, device=device)
     empty_prefix = wp.empty((rows, 1), dtype=wp.float64, device=device)
     code = {"direct": DIRECT, "tree": TREE, "edge": EDGE}[algorithm]
-    wp.launch(
+    wp.launch_tiled(
         coupled_response,
-        dim=rows,
+        dim=[rows],
+        block_dim=COUPLED_LANES,
         inputs=[code, prepared.lines,
                 prepared.prefix if prepared.prefix is not None else empty_prefix,
                 prepared.tree if prepared.tree is not None else empty_tree,

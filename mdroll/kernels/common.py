@@ -23,21 +23,28 @@ MAX_CLOSED_FORM_OFFSET = 150_000
 
 
 @wp.func
-def square_prefix(t: wp.float64) -> wp.float64:
-    """``sum_{m=1}^{t} m^2 = t (t+1) (2t+1) / 6`` for an integer-valued t.
+def sum_of_squares(p: int, q: int) -> wp.float64:
+    """``sum_{m=p}^{q} m^2`` for integer offsets p <= q + 1 (0 for an empty range).
 
-    As a polynomial it satisfies ``Q(t) - Q(t-1) = t^2`` for every integer t, so
-    ``sum_{m=p}^{q} m^2 = Q(q) - Q(p-1)`` holds for negative offsets too. Exact in float64 for
-    ``|t| <= MAX_CLOSED_FORM_OFFSET`` (the product is an integer below 2^53 and divisible by 6);
-    float64 avoids the slow 64-bit integer division on GPUs.
+    ``(Q(q) - Q(p-1)) / 6`` with ``Q(t) = t (t+1) (2t+1)``, which satisfies
+    ``Q(t) - Q(t-1) = 6 t^2`` for every integer t, negative offsets included. Both products are
+    integers below 2^53 for ``|t| <= MAX_CLOSED_FORM_OFFSET``, so the difference is exact and
+    the one division (by 6, of a multiple of 6) too; float64 avoids the slow 64-bit integer
+    division on GPUs.
     """
-    return t * (t + wp.float64(1.0)) * (wp.float64(2.0) * t + wp.float64(1.0)) / wp.float64(6.0)
+    one = wp.float64(1.0)
+    two = wp.float64(2.0)
+    t = wp.float64(q)
+    s = wp.float64(p - 1)
+    return (t * (t + one) * (two * t + one) - s * (s + one) * (two * s + one)) / wp.float64(6.0)
 
 
 @wp.func
-def sum_of_squares(p: int, q: int) -> wp.float64:
-    """``sum_{m=p}^{q} m^2`` for integer offsets p <= q + 1 (0 for an empty range)."""
-    return square_prefix(wp.float64(q)) - square_prefix(wp.float64(p - 1))
+def sum_of_offsets(p: int, q: int) -> wp.float64:
+    """``sum_{m=p}^{q} m = (q (q+1) - (p-1) p) / 2`` for integer offsets p <= q + 1, exact in float64."""
+    t = wp.float64(q)
+    s = wp.float64(p - 1)
+    return (t * (t + wp.float64(1.0)) - s * (s + wp.float64(1.0))) / wp.float64(2.0)
 
 
 @wp.func
@@ -66,14 +73,17 @@ def spring_sum(
     r: int,
     i: int,
     j: int,
+    stride: int,
     c: int,
     d: wp.float64,
     curvature: wp.float64,
 ) -> wp.float64:
-    """Direct ``sum_{l=i}^{j-1} max(h_l + d - curvature (l - c)^2, 0)`` (m), eq 10-12."""
+    """Direct ``sum_l max(h_l + d - curvature (l - c)^2, 0)`` (m) over ``l = i, i + stride, ... < j``,
+    eq 10-12; ``stride > 1`` lets the lanes of a block share one range, each taking every
+    ``stride``-th spring (adjacent lanes read adjacent springs)."""
     acc = wp.float64(0.0)
     zero = wp.float64(0.0)
-    for l in range(i, j):
+    for l in range(i, j, stride):
         m = wp.float64(l - c)
         acc += wp.max(h[r, l] + d - curvature * m * m, zero)
     return acc
@@ -133,21 +143,42 @@ def blocked_spring_sum(
     acc: block_values,
 ) -> block_values:
     """Add ``sum_m max(h_{c+j+m} + d - curvature m^2, 0)`` to ``acc[j]`` for the 8 steps j = 0..7,
-    over the offsets ``m = first_offset .. first_offset + 8 blocks - 1`` (eq 10-12).
+    over the offsets ``m = first_offset .. last = first_offset + 8 blocks - 1`` (eq 10-12).
 
-    The caller guarantees that every spring read lies on the row.
+    Uses ``max(u, 0) = (u + |u|) / 2``: the inner loop sums ``|u|`` (two float64 adds per
+    (step, offset) pair, the absolute value being a free operand modifier, where ``max`` costs
+    a compare and a select more), and ``sum_m u`` is exact in closed form: the heights of
+    step 0 summed once per block, slid to step j by the springs entering and leaving, plus
+    ``8 blocks d - curvature sum m^2``. Cancellation is mild: the springs of the window that
+    do not touch have ``|u| <= max h - min h``.
+
+    The caller guarantees that every spring read (``c + first_offset .. c + last + 7``) lies
+    on the row.
     """
-    zero = wp.float64(0.0)
+    absolute = block_values()
+    heights_step0 = wp.float64(0.0)
     for b in range(blocks):
         m0 = first_offset + b * BLOCK
         heights = block_heights()
         for i in range(BLOCK_HEIGHTS):
             heights[i] = row[c + m0 + i]
         lift = block_values()
+        fm = wp.float64(m0)  # m0 + k as a float; wp.float64(k) would retype the unrolled k (Warp 1.19)
         for k in range(BLOCK):
-            fm = wp.float64(m0 + k)
             lift[k] = d - curvature * fm * fm
+            fm += wp.float64(1.0)
+        heights_step0 += ((heights[0] + heights[1]) + (heights[2] + heights[3])) + (
+            (heights[4] + heights[5]) + (heights[6] + heights[7])
+        )
         for j in range(BLOCK):
             for k in range(BLOCK):
-                acc[j] = acc[j] + wp.max(heights[j + k] + lift[k], zero)
+                absolute[j] = absolute[j] + wp.abs(heights[j + k] + lift[k])
+    last = first_offset + blocks * BLOCK - 1
+    lifts = wp.float64(blocks * BLOCK) * d - curvature * sum_of_squares(first_offset, last)
+    heights_sum = heights_step0
+    half = wp.float64(0.5)
+    for j in range(BLOCK):
+        acc[j] = acc[j] + half * (heights_sum + lifts + absolute[j])
+        if j < BLOCK - 1:
+            heights_sum += row[c + j + last + 1] - row[c + j + first_offset]
     return acc

@@ -19,12 +19,18 @@ def force_direct(
     d: wp.float64,
     h_max: wp.float64,
     curvature: wp.float64,
+    lane: int,
+    lanes: int,
 ) -> wp.float64:
-    """Sum of positive spring displacements (m) for the wheel at spring c, indentation d (m)."""
+    """Sum of positive spring displacements (m) for the wheel at spring c, indentation d (m).
+
+    Shared by the ``lanes`` threads of a block: this lane sums springs ``lane, lane + lanes, ...``
+    of the window (the whole sum for ``lane = 0, lanes = 1``).
+    """
     window = reach_inclusive(d + h_max, curvature)
     if window < 0:
         return wp.float64(0.0)
-    return spring_sum(h, r, wp.max(c - window, 0), wp.min(c + window + 1, n), c, d, curvature)
+    return spring_sum(h, r, wp.max(c - window, 0) + lane, wp.min(c + window + 1, n), lanes, c, d, curvature)
 
 
 @wp.kernel
@@ -61,4 +67,4 @@ def contact_force_direct(
         for j in range(BLOCK):
             s = base + j
             if s < steps:
-                force[r, s] = k_spring * force_direct(h, r, n, first + s, d, h_max, curvature)
+                force[r, s] = k_spring * force_direct(h, r, n, first + s, d, h_max, curvature, 0, 1)

@@ -3,7 +3,8 @@
 Decoupled (section 5.1): the response is linear, so it runs in chunks in parallel: each chunk
 from rest, then the states entering the chunks by one sequential pass per row over the chunks
 (the free evolution over a chunk is a fixed 2x2 matrix), then each chunk again from its true
-state. Coupled (eq 13): time is sequential per realization, one thread per realization.
+state. Coupled (eq 13): time is sequential per realization; one block per realization shares each
+step's spring sum.
 Semi-implicit Euler: ``v += dt a(y)`` first, then ``y += dt v`` with the new v; plain forward
 Euler grows the oscillation energy by ~34 % over 10^6 steps at the defaults.
 """
@@ -11,7 +12,7 @@ Euler grows the oscillation energy by ~34 % over 10^6 steps at the defaults.
 import warp as wp
 
 from .direct import force_direct
-from .edge import force_edge
+from .edge import edge_geometry, force_edge
 from .tree import force_tree
 
 DIRECT = wp.constant(0)
@@ -98,6 +99,11 @@ def decoupled_chunks(
     euler_steps(force, r, start, wp.min(start + chunk, steps), starts[r, c], F_N, k_contact, inv_mass, dt, accel, 1)
 
 
+#: Threads sharing one realization in the coupled dynamics on CUDA: one warp, so the per-step
+#: block reduction needs no cross-warp synchronization. Warp runs tiles with one thread on the CPU.
+COUPLED_LANES = 32
+
+
 @wp.kernel
 def coupled_response(
     algorithm: int,
@@ -123,27 +129,35 @@ def coupled_response(
 ):
     """Eq 13: ``m d'' = F_N - F(x_w(t), d(t))``, d(0) = d_start (d0 in the thesis), d'(0) = 0, the wheel one spring per step.
 
-    The force is recomputed every step at the current d by the chosen algorithm (DIRECT, TREE
-    or EDGE; eq 49 with a(d) = sqrt(d R) and the Hertz force at d). Writes ``force`` (N),
-    ``accel = d''`` (m/s^2); steps without contact are those with F = 0.
+    Launched tiled, one block per realization. Time is sequential, so the block shares each
+    step's force instead: every lane sums its part of the springs (DIRECT: every lanes-th
+    spring of the window; TREE: its slice of each band), a block-wide sum combines them, and
+    every lane advances the same (d, d') with the same arithmetic. EDGE (eq 49 with
+    a(d) = sqrt(d R) and the Hertz force at d) is O(1) per step and runs on lane 0. Writes
+    ``force`` (N) and ``accel = d''`` (m/s^2); steps without contact are those with F = 0.
     """
-    r = wp.tid()
+    r, lane = wp.tid()
+    lanes = wp.block_dim()
     curvature = dx * dx / R
     k_spring = E_star * dx
+    h_max = bounds[r][1]
     d = d_start
     v = wp.float64(0.0)
     for s in range(steps):
         c = first + s
-        F = wp.float64(0.0)
+        part = wp.float64(0.0)
         if algorithm == TREE:
-            F = k_spring * force_tree(h, prefix, tree, level_offsets, top_level, leaf_size, r, n, c, d, curvature)
+            part = k_spring * force_tree(
+                h, prefix, tree, level_offsets, top_level, leaf_size, r, n, c, d, curvature, lane, lanes
+            )
         elif algorithm == DIRECT:
-            F = k_spring * force_direct(h, r, n, c, d, bounds[r][1], curvature)
-        else:
-            if d > wp.float64(0.0):
-                F = force_edge(prefix, r, c, d, dx, R, E_star)
+            part = k_spring * force_direct(h, r, n, c, d, h_max, curvature, lane, lanes)
+        elif lane == 0 and d > wp.float64(0.0):
+            part = force_edge(prefix, r, c, edge_geometry(d, dx, R, E_star))
+        F = wp.tile_sum(wp.tile(part))[0]
         a = (F_N - F) * inv_mass
-        force[r, s] = F
-        accel[r, s] = a
+        if lane == 0:
+            force[r, s] = F
+            accel[r, s] = a
         v += dt * a
         d += dt * v
