@@ -17,7 +17,8 @@ from mdroll.devices import resolve_device
 from mdroll.provenance import environment
 
 LEAF_SIZES = (8, 16, 32)
-BAND_LIMITS = (0, 32, 64, 128, 10**6)  # 0: always traverse; 10^6: always sum the band directly
+BAND_LIMITS = (0, 64, 10**6)  # 0: always traverse; 10^6: always sum the band directly
+REFINEMENT_LEAF_SIZES = (8, 32)
 
 
 def main() -> None:
@@ -35,13 +36,16 @@ def main() -> None:
             record["thesis"].append(point)
             print(f"thesis leaf {leaf_size:>2} band_limit {band_limit:>7}: {point['force_s'] * 1e3:7.2f} ms", flush=True)
     sizes, realizations = STUDIES["full"].sweeps(device)["refinement"]
-    for band_limit in BAND_LIMITS:
-        points = [force_time(p, "tree", realizations, device, args.repeats, "periodic", 8, band_limit) for p in sizes]
-        record["refinement"] += points
-        slope, err = fit_exponent([p["n"] for p in points], [p["force_s"] for p in points])
-        record["fits"][str(band_limit)] = {"exponent": slope, "stderr": err}
-        times = " ".join(f"{p['force_s'] * 1e3:.2f}" for p in points)
-        print(f"refinement band_limit {band_limit:>7}: n^{slope:.3f} +- {err:.3f}  ({times} ms)", flush=True)
+    for leaf_size in REFINEMENT_LEAF_SIZES:
+        for band_limit in BAND_LIMITS:
+            points = [force_time(p, "tree", realizations, device, args.repeats, "periodic", leaf_size, band_limit)
+                      for p in sizes]
+            record["refinement"] += points
+            slope, err = fit_exponent([p["n"] for p in points], [p["force_s"] for p in points])
+            record["fits"][f"leaf {leaf_size} band_limit {band_limit}"] = {"exponent": slope, "stderr": err}
+            times = " ".join(f"{p['force_s'] * 1e3:.2f}" for p in points)
+            print(f"refinement leaf {leaf_size:>2} band_limit {band_limit:>7}: n^{slope:.3f} +- {err:.3f}  ({times} ms)",
+                  flush=True)
     with open(args.out, "w") as f:
         json.dump(record, f, indent=1)
 

@@ -165,3 +165,39 @@ def test_bad_arguments(kwargs, name):
 def test_wrong_line_length_is_refused():
     with pytest.raises(ParameterError, match="shape"):
         contact_force(np.zeros((2, 100)), SMALL)
+
+
+def test_closed_form_sums_are_exact_integers(device):
+    """sum m^2 and sum m over offset ranges up to MAX_CLOSED_FORM_OFFSET (the tree's full-contact
+    closed forms, eq 19-20) against Python's exact integers, empty ranges included."""
+    import warp as wp
+
+    from mdroll.kernels.common import MAX_CLOSED_FORM_OFFSET, sum_of_offsets, sum_of_squares
+
+    @wp.kernel
+    def sums(p: wp.array(dtype=int), q: wp.array(dtype=int), out: wp.array2d(dtype=wp.float64)):
+        i = wp.tid()
+        out[i, 0] = sum_of_squares(p[i], q[i])
+        out[i, 1] = sum_of_offsets(p[i], q[i])
+
+    rng = np.random.default_rng(4)
+    top = MAX_CLOSED_FORM_OFFSET
+    p = np.concatenate([[-top, -top, 0, 5, -3], rng.integers(-top, top, 2000)])
+    q = np.concatenate([[top, -top - 1, 0, 4, -3], rng.integers(-top, top, 2000)])
+    p, q = np.minimum(p, q + 1), np.maximum(q, p - 1)  # p <= q + 1
+    out = wp.zeros((p.size, 2), dtype=wp.float64, device=device)
+    wp.launch(sums, dim=p.size, inputs=[wp.array(p, dtype=int, device=device), wp.array(q, dtype=int, device=device),
+                                        out], device=device)
+    result = out.numpy()
+    for (a, b), (squares, offsets) in zip(zip(p.tolist(), q.tolist()), result):
+        # Python integers: the closed forms, checked by brute force on short ranges
+        exact_squares = _exact_squares(b) - _exact_squares(a - 1)
+        exact_offsets = (b * (b + 1) - (a - 1) * a) // 2
+        if b - a < 2000:
+            assert exact_squares == sum(m * m for m in range(a, b + 1)) and exact_offsets == sum(range(a, b + 1))
+        assert (squares, offsets) == (exact_squares, exact_offsets), (a, b)
+
+
+def _exact_squares(t: int) -> int:
+    """sum_{m=1}^{t} m^2 in Python integers (0 for t = 0; the polynomial continues to t < 0)."""
+    return t * (t + 1) * (2 * t + 1) // 6

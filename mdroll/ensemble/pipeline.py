@@ -12,7 +12,7 @@ import numpy as np
 
 from ..devices import resolve_device, synchronize, to_warp, warp
 from ..params import ParameterError, Params
-from .force import ALGORITHMS, BOUNDARIES, check_choice, launch_force, prepare_lines
+from .force import ALGORITHMS, BOUNDARIES, DEFAULT_LEAF_SIZE, check_choice, launch_force, prepare_lines
 from .lines import check_seed, realization_indices, rough_lines
 from .spectra import RunningMoments, array_module, array_rows, psd_rows, to_host, wavenumbers
 
@@ -182,7 +182,7 @@ def run_ensemble(
     batch: int | None = None,
     progress: bool = True,
     window: bool = False,
-    leaf_size: int = 8,
+    leaf_size: int = DEFAULT_LEAF_SIZE,
     checkpoint=None,
     resume: bool = False,
     memory_limit: int | None = None,

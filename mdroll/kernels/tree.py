@@ -47,6 +47,8 @@ from .common import (
     tree_stack,
 )
 
+#: One bit per step of a thread's 8 (band_descent's step masks).
+ALL_STEPS = wp.constant(255)
 #: Nodes are pushed as ``(index << LEVEL_BITS) | level`` (levels < 32).
 LEVEL_BITS = wp.constant(5)
 LEVEL_MASK = wp.constant(31)
@@ -222,6 +224,8 @@ def band_descent(
     ``sum (m - j)^2 = sum m^2 - 2 j sum m + j^2 count``, exact integers); a node ambiguous for
     some step is split, and at a leaf its springs are summed for the ambiguous steps. The
     springs a warp's threads visit stay few however fine dx is, unlike a direct sum of the band.
+
+    Requires that no wheel c .. c+7 lies in lo..hi (the caller's bands start past the core).
     """
     if lo > hi:
         return acc
@@ -246,21 +250,34 @@ def band_descent(
         j = wp.min(index * size + size, hi + 1)
         if i < j:
             box = tree[r, level_offsets[level] + index]
+            # no wheel lies on the node, so over the node and the 8 steps the distance to the
+            # wheel is extreme at the ends: two tests settle "full for all" and "empty for all"
+            near = wp.min(wp.min(wp.abs(i - c), wp.abs(i - c - BLOCK + 1)),
+                          wp.min(wp.abs(j - 1 - c), wp.abs(j - c - BLOCK)))
+            far = wp.max(wp.max(wp.abs(i - c), wp.abs(i - c - BLOCK + 1)),
+                         wp.max(wp.abs(j - 1 - c), wp.abs(j - c - BLOCK)))
+            f_near = wp.float64(near)
+            f_far = wp.float64(far)
             full = int(0)
             ambiguous = int(0)
-            for k in range(BLOCK):
-                p = wp.float64(i - c - k)
-                q = wp.float64(j - 1 - c - k)
-                g_p = curvature * p * p - d
-                g_q = curvature * q * q - d
-                if wp.max(g_p, g_q) < box[0]:
-                    full = full | (1 << k)
-                else:
-                    g_low = wp.min(g_p, g_q)
-                    if i <= c + k and c + k < j:
-                        g_low = -d  # the indenter's lowest point lies inside the node
-                    if g_low <= box[1]:
-                        ambiguous = ambiguous | (1 << k)
+            if curvature * f_far * f_far - d < box[0]:
+                full = ALL_STEPS
+            elif curvature * f_near * f_near - d <= box[1]:
+                ambiguous = ALL_STEPS
+                if level == 0:
+                    # a leaf: classify each step, as band_sum does for one
+                    ambiguous = int(0)
+                    p = wp.float64(i - c)
+                    q = wp.float64(j - 1 - c)
+                    for k in range(BLOCK):
+                        g_p = curvature * p * p - d
+                        g_q = curvature * q * q - d
+                        if wp.max(g_p, g_q) < box[0]:
+                            full = full | (1 << k)
+                        elif wp.min(g_p, g_q) <= box[1]:
+                            ambiguous = ambiguous | (1 << k)
+                        p -= wp.float64(1.0)
+                        q -= wp.float64(1.0)
             if ambiguous != 0 and level > 0:
                 stack[top] = ((2 * index) << LEVEL_BITS) | (level - 1)
                 stack[top + 1] = ((2 * index + 1) << LEVEL_BITS) | (level - 1)
