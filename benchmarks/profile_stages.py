@@ -51,7 +51,7 @@ def main() -> None:
         prepared = clock("build", lambda: prepare_lines(lines, p, args.algorithm, "open", p.d0, device,
                                                         h_max=H_BOUND_SIGMAS * p.h0))
         force = clock("force", lambda: launch_force(prepared, p, args.algorithm, p.d0, device))
-        accel = clock("response", lambda: _decoupled(force, p, device))
+        clock("response", lambda: _decoupled(force, p, device))
         rows = cupy_view(force)
         clock("check force finite", lambda: _check_finite(rows, "force", "force", idx))
         with cupy_stream(device):
