@@ -33,7 +33,10 @@ from .ensemble.pipeline import H_BOUND_SIGMAS, run_ensemble
 from .params import Params
 
 #: What the issue expects of the refinement exponents (time ~ n^p).
-EXPECTED_REFINEMENT_EXPONENT = {"direct": 2.0, "tree": 1.1, "edge": 1.0}
+EXPECTED_REFINEMENT_EXPONENT = {"direct": 2.0, "tree": 1.1, "edge": 1.0, "tree-descent": 1.1}
+#: The refinement sweep also times the tree with every band traversed (band_limit 0, leaf 8):
+#: the O(n log n) variant, next to the default that sums the narrowed band directly.
+TREE_DESCENT = {"leaf_size": 8, "band_limit": 0}
 
 
 @dataclass(frozen=True)
@@ -178,6 +181,12 @@ def run_study(size: str = "quick", devices=None, progress=print) -> dict:
                     if _allowed(device, algorithm, p.n_points, reps, full):
                         record[section].append(force_time(p, algorithm, reps, device, study.repeats))
                 _fit(record, section, device, algorithm, progress)
+            if section == "refinement":
+                for p in sizes:
+                    if _allowed(device, "tree", p.n_points, reps, full):
+                        point = force_time(p, "tree", reps, device, study.repeats, **TREE_DESCENT)
+                        record[section].append({**point, "algorithm": "tree-descent"})
+                _fit(record, section, device, "tree-descent", progress)
     e, counts = study.ensemble
     for device in devices:
         for algorithm in ALGORITHMS:
@@ -273,10 +282,10 @@ def plot_study(record: dict, path) -> None:
 
     sections = [s for s in ("refinement", "distance") if record[s]]
     fig, axes = plt.subplots(1, len(sections), figsize=(6 * len(sections), 4.5), layout="constrained", squeeze=False)
-    colours = {"direct": "C3", "tree": "C0", "edge": "C2"}
+    colours = {"direct": "C3", "tree": "C0", "edge": "C2", "tree-descent": "C4"}
     for ax, section in zip(axes[0], sections):
         for device in sorted({r["device"] for r in record[section]}):
-            for alg in ALGORITHMS:
+            for alg in colours:
                 pts = [r for r in record[section] if r["device"] == device and r["algorithm"] == alg]
                 if not pts:
                     continue

@@ -33,7 +33,7 @@ def test_tiny_study_through_the_cli(tmp_path, monkeypatch, device):
     record = json.loads((tmp_path / "bench.json").read_text())
     assert record["environment"][device]["device_name"]
     fits = record["fits"]["refinement"][device]
-    assert set(fits) == {"tree", "direct", "edge"}
+    assert set(fits) == {"tree", "direct", "edge", "tree-descent"}
     # direct grows fastest under refinement: its window grows with n
     assert fits["direct"]["exponent"] > fits["edge"]["exponent"]
     assert len(record["distance"]) == 9 and all(p["force_s"] > 0 for p in record["distance"])

@@ -18,10 +18,15 @@ from ..params import ParameterError, Params
 
 ALGORITHMS = ("tree", "direct", "edge")
 BOUNDARIES = ("open", "periodic")
-DEFAULT_LEAF_SIZE = 8
+#: Springs per tree leaf: 32 was fastest at thesis scale on the H200 (14.6 ms vs 15.8 for 8;
+#: benchmarks/results/tree_tuning_H200_v4b.json).
+DEFAULT_LEAF_SIZE = 32
 #: Band width (springs) above which the tree kernel's main path descends the tree instead of
-#: summing the band directly (kernels/tree.py).
-DEFAULT_BAND_LIMIT = 64
+#: summing the band directly (kernels/tree.py). By default it never descends: on the H200 the
+#: direct band sum was faster at every refinement size measured (2^17..2^22 springs over
+#: 0.25 m; 89 vs 165 ms at 2^22), and the descent's better exponent (1.20 vs 1.47) would only
+#: pay beyond ~2^25, past the closed forms' range (MAX_CLOSED_FORM_OFFSET).
+DEFAULT_BAND_LIMIT = 2**30
 
 
 def check_choice(name: str, value, allowed) -> str:
@@ -97,6 +102,7 @@ class PreparedLines:
     top_level: int = 0
     leaf_size: int = DEFAULT_LEAF_SIZE
     band_limit: int = DEFAULT_BAND_LIMIT
+    h_top: float = 0.0  # the largest height of all rows (m; direct and tree)
 
 
 def _row_bounds(lines, device):
@@ -208,14 +214,16 @@ def prepare_lines(
                              band_limit=band_limit)
     if algorithm in ("tree", "edge"):
         prepared.prefix = _prefix_sums(work, device)
-    if algorithm == "tree":
+    if algorithm in ("direct", "tree"):
         # each line's window comes from its own maximum (the kernels read ``bounds``), not h_max
-        window = reach(d + float(bounds.numpy()[:, 1].max()), params.dx**2 / params.R)
+        prepared.h_top = float(bounds.numpy()[:, 1].max())
+        window = reach(d + prepared.h_top, params.dx**2 / params.R)
         if window > MAX_CLOSED_FORM_OFFSET:
             raise ParameterError(
-                f"dx = {params.dx!r} m is too fine for the tree: the contact window spans {window} springs a side, "
-                f"beyond the {MAX_CLOSED_FORM_OFFSET} for which its float64 closed-form sums of squares are exact"
+                f"dx = {params.dx!r} m is too fine for the {algorithm} kernel: the contact window spans {window} springs "
+                f"a side, beyond the {MAX_CLOSED_FORM_OFFSET} for which its float64 closed-form sums of squares are exact"
             )
+    if algorithm == "tree":
         prepared.tree, prepared.level_offsets, prepared.top_level = _min_max_tree(work, leaf_size, device)
     return prepared
 
@@ -235,6 +243,18 @@ def edge_geometry(params: Params, d: float):
     return geometry
 
 
+def lift_table(params: Params, d: float, h_top: float) -> tuple[np.ndarray, int]:
+    """The indenter profile ``d - curvature m^2`` (m) at offsets ``|m| <= window + 8`` (the window
+    of possible contact for heights up to ``h_top``, plus the blocked sums' padding) and the
+    index of m = 0: the table the register-blocked kernels read instead of recomputing it."""
+    from ..kernels.common import BLOCK
+
+    curvature = params.dx**2 / params.R
+    reach_out = max(reach(d + h_top, curvature), 0) + BLOCK
+    m = np.arange(-reach_out, reach_out + 1, dtype=np.float64)
+    return d - curvature * m * m, reach_out
+
+
 def launch_force(prepared: PreparedLines, params: Params, algorithm: str, d: float, device: str, out=None):
     """The (R, steps) force array (N, Warp float64 on ``device``) at constant indentation d (m).
 
@@ -252,13 +272,15 @@ def launch_force(prepared: PreparedLines, params: Params, algorithm: str, d: flo
     p = prepared
     # direct and tree: one thread per BLOCK consecutive steps; edge: one per step
     dim = (rows, -(-p.steps // BLOCK))
+    if algorithm in ("direct", "tree"):
+        table, origin = lift_table(params, d, p.h_top)
+        lifts = wp.array(table, dtype=wp.float64, device=device)
     if algorithm == "direct":
-        inputs = [p.lines, p.bounds, p.n_work, p.first, p.steps, d, curvature, params.k_spring, force]
+        inputs = [p.lines, p.bounds, lifts, origin, p.n_work, p.first, p.steps, d, curvature, params.k_spring, force]
         kernel = contact_force_direct
     elif algorithm == "tree":
-        inputs = [p.lines, p.prefix, p.tree, p.level_offsets, p.top_level, p.leaf_size, p.band_limit, p.n_work, p.first,
-                  p.steps,
-                  d, curvature, params.k_spring, force]
+        inputs = [p.lines, p.prefix, p.tree, p.level_offsets, lifts, origin, p.top_level, p.leaf_size, p.band_limit,
+                  p.n_work, p.first, p.steps, d, curvature, params.k_spring, force]
         kernel = contact_force_tree
     else:
         inputs = [p.prefix, p.first, edge_geometry(params, d), force]

@@ -37,6 +37,8 @@ def force_direct(
 def contact_force_direct(
     h: wp.array2d(dtype=wp.float64),
     bounds: wp.array(dtype=wp.vec2d),
+    lifts: wp.array(dtype=wp.float64),
+    lift_origin: int,
     n: int,
     first: int,
     steps: int,
@@ -60,7 +62,7 @@ def contact_force_direct(
     reach_last = -window + blocks * BLOCK - 1 + BLOCK - 1
     if window >= 0 and base + BLOCK <= steps and c - window >= 0 and c + reach_last < n:
         # every spring the 8 steps read lies on the line: no checks in the inner loops
-        acc = blocked_spring_sum(h[r], c, -window, blocks, d, curvature, block_values())
+        acc = blocked_spring_sum(h[r], c, -window, blocks, lifts, lift_origin, d, curvature, block_values())
         for j in range(BLOCK):
             force[r, base + j] = k_spring * acc[j]
     else:

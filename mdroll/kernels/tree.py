@@ -311,6 +311,8 @@ def contact_force_tree(
     prefix: wp.array2d(dtype=wp.float64),
     tree: wp.array2d(dtype=wp.vec2d),
     level_offsets: wp.array(dtype=int),
+    lifts: wp.array(dtype=wp.float64),
+    lift_origin: int,
     top_level: int,
     leaf_size: int,
     band_limit: int,
@@ -363,13 +365,14 @@ def contact_force_tree(
                                c + core_right + 1, c + BLOCK - 1 + outer_right, d, curvature, acc)
         else:
             right_blocks = (outer_right - core_right + BLOCK - 1) // BLOCK
-            acc = blocked_spring_sum(row, c, core_right + 1, right_blocks, d, curvature, acc)
+            acc = blocked_spring_sum(row, c, core_right + 1, right_blocks, lifts, lift_origin, d, curvature, acc)
         if descend_left:
             acc = band_descent(h, prefix, tree, level_offsets, top_level, leaf_size, r, c,
                                c - outer_left, c + BLOCK - 1 - core_left - 1, d, curvature, acc)
         else:
             left_blocks = (outer_left - core_left + BLOCK - 1) // BLOCK
-            acc = blocked_spring_sum(row, c, -core_left - left_blocks * BLOCK, left_blocks, d, curvature, acc)
+            acc = blocked_spring_sum(row, c, -core_left - left_blocks * BLOCK, left_blocks, lifts, lift_origin, d,
+                                     curvature, acc)
         for j in range(BLOCK):
             force[r, base + j] = k_spring * acc[j]
     else:
