@@ -201,3 +201,17 @@ def test_closed_form_sums_are_exact_integers(device):
 def _exact_squares(t: int) -> int:
     """sum_{m=1}^{t} m^2 in Python integers (0 for t = 0; the polynomial continues to t < 0)."""
     return t * (t + 1) * (2 * t + 1) // 6
+
+
+@pytest.mark.parametrize("algorithm", ["direct", "tree"])
+def test_window_beyond_the_exact_closed_forms_is_refused(algorithm):
+    """A contact window wider than MAX_CLOSED_FORM_OFFSET springs a side would make the float64
+    sums of squares inexact: refused before any kernel runs, naming dx; edge has no such sum."""
+    from mdroll.kernels.common import MAX_CLOSED_FORM_OFFSET
+
+    a = Params().a
+    p = Params(L=4.2 * a, dx=a / (1.02 * MAX_CLOSED_FORM_OFFSET))
+    lines = np.zeros((1, p.n_points))
+    with pytest.raises(ParameterError, match=rf"dx = .* too fine for the {algorithm} kernel"):
+        contact_force(lines, p, algorithm)
+    assert contact_force(lines, p, "edge").shape[0] == 1

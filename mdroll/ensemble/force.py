@@ -202,8 +202,10 @@ def prepare_lines(
     wp = warp()
     rows, n = lines.shape
     bounds = _row_bounds(lines, device)
+    # the largest height of all rows: one host copy, for the default h_max and the direct/tree checks
+    h_top = float(bounds.numpy()[:, 1].max()) if h_max is None or algorithm in ("direct", "tree") else None
     if h_max is None:
-        h_max = float(bounds.numpy()[:, 1].max())
+        h_max = h_top
     first, steps = step_range(params, boundary, d, h_max)
     work = lines
     if boundary == "periodic":
@@ -216,7 +218,7 @@ def prepare_lines(
         prepared.prefix = _prefix_sums(work, device)
     if algorithm in ("direct", "tree"):
         # each line's window comes from its own maximum (the kernels read ``bounds``), not h_max
-        prepared.h_top = float(bounds.numpy()[:, 1].max())
+        prepared.h_top = h_top
         window = reach(d + prepared.h_top, params.dx**2 / params.R)
         if window > MAX_CLOSED_FORM_OFFSET:
             raise ParameterError(

@@ -55,6 +55,33 @@ LEVEL_MASK = wp.constant(31)
 
 
 @wp.func
+def band_roots(lo: int, hi: int, leaf_size: int, top_level: int) -> tuple[tree_stack, int]:
+    """The traversal's start for the band ``lo..hi`` (lo <= hi): a stack holding the (at most 2)
+    nodes of the smallest level whose nodes are at least as wide as the band, and its depth."""
+    level = int(0)
+    size = leaf_size
+    while size < hi - lo + 1 and level < top_level:
+        level += 1
+        size *= 2
+    stack = tree_stack()
+    top = int(0)
+    for first_node in range(lo // size, hi // size + 1):
+        stack[top] = (first_node << LEVEL_BITS) | level
+        top += 1
+    return stack, top
+
+
+@wp.func
+def node_span(code: int, leaf_size: int, lo: int, hi: int) -> tuple[int, int, int, int]:
+    """A pushed node's level and index, and the springs ``i..j-1`` it covers, clipped to ``lo..hi``
+    (``i >= j``: none)."""
+    level = code & LEVEL_MASK
+    index = code >> LEVEL_BITS
+    size = leaf_size << level
+    return level, index, wp.max(index * size, lo), wp.min(index * size + size, hi + 1)
+
+
+@wp.func
 def band_sum(
     h: wp.array2d(dtype=wp.float64),
     prefix: wp.array2d(dtype=wp.float64),
@@ -73,24 +100,10 @@ def band_sum(
     acc = wp.float64(0.0)
     if lo > hi:
         return acc
-    level = int(0)
-    size = leaf_size
-    while size < hi - lo + 1 and level < top_level:
-        level += 1
-        size *= 2
-    stack = tree_stack()
-    top = int(0)
-    for first_node in range(lo // size, hi // size + 1):
-        stack[top] = (first_node << LEVEL_BITS) | level
-        top += 1
+    stack, top = band_roots(lo, hi, leaf_size, top_level)
     while top > 0:
         top -= 1
-        code = stack[top]
-        level = code & LEVEL_MASK
-        index = code >> LEVEL_BITS
-        size = leaf_size << level
-        i = wp.max(index * size, lo)
-        j = wp.min(index * size + size, hi + 1)
+        level, index, i, j = node_span(stack[top], leaf_size, lo, hi)
         if i < j:
             box = tree[r, level_offsets[level] + index]
             p = wp.float64(i - c)
@@ -229,25 +242,11 @@ def band_descent(
     """
     if lo > hi:
         return acc
-    level = int(0)
-    size = leaf_size
-    while size < hi - lo + 1 and level < top_level:
-        level += 1
-        size *= 2
-    stack = tree_stack()
-    top = int(0)
-    for first_node in range(lo // size, hi // size + 1):
-        stack[top] = (first_node << LEVEL_BITS) | level
-        top += 1
+    stack, top = band_roots(lo, hi, leaf_size, top_level)
     zero = wp.float64(0.0)
     while top > 0:
         top -= 1
-        code = stack[top]
-        level = code & LEVEL_MASK
-        index = code >> LEVEL_BITS
-        size = leaf_size << level
-        i = wp.max(index * size, lo)
-        j = wp.min(index * size + size, hi + 1)
+        level, index, i, j = node_span(stack[top], leaf_size, lo, hi)
         if i < j:
             box = tree[r, level_offsets[level] + index]
             # no wheel lies on the node, so over the node and the 8 steps the distance to the
