@@ -13,11 +13,12 @@ import statistics
 import time
 
 from mdroll import Params
-from mdroll.devices import cupy_stream, cupy_view, resolve_device, synchronize, to_warp
+from mdroll.devices import resolve_device, synchronize, to_warp
+from mdroll.ensemble.fft import rfft_rows
 from mdroll.ensemble.force import launch_force, prepare_lines
 from mdroll.ensemble.lines import rough_lines
-from mdroll.ensemble.pipeline import H_BOUND_SIGMAS, _check_finite, _decoupled, _Totals
-from mdroll.ensemble.spectra import psd_rows, rfft_rows
+from mdroll.ensemble.pipeline import H_BOUND_SIGMAS, _Totals
+from mdroll.ensemble.spectra import psd_moments_of_batch, series_sums
 from mdroll.provenance import environment
 
 
@@ -28,7 +29,6 @@ def main() -> None:
     parser.add_argument("--out", default="profile.json")
     args = parser.parse_args()
     device = resolve_device(args.device)
-    import cupy
     import numpy as np
 
     p = Params(L=5.24288, n_real=300)
@@ -51,16 +51,15 @@ def main() -> None:
         prepared = clock("build", lambda: prepare_lines(lines, p, args.algorithm, "open", p.d0, device,
                                                         h_max=H_BOUND_SIGMAS * p.h0))
         force = clock("force", lambda: launch_force(prepared, p, args.algorithm, p.d0, device))
-        clock("response", lambda: _decoupled(force, p, device))
-        rows = cupy_view(force)
-        clock("check force finite", lambda: _check_finite(rows, "force", "force", idx))
-        with cupy_stream(device):
-            centred = clock("remove mean", lambda: rows - rows.mean(axis=1, keepdims=True))
-            clock("rfft", lambda: rfft_rows(centred, device))
-        psd = clock("psd (mean, rfft, |B|^2)", lambda: psd_rows(force, p.dx, device))
-        clock("check psd finite", lambda: _check_finite(psd, "psd", "spectra", idx))
-        clock("moments + force sums", lambda: _Totals().add(psd, psd, rows))
-        clock("allocate 300 x 2^20 (Warp)", lambda: to_warp(cupy.empty_like(rows), device))
+        sums = clock("response (force sums, final state)", lambda: series_sums(force, p, device, True))
+        clock("rfft", lambda: rfft_rows(force, device))
+        moments = clock("spectra (rfft, PSD moments)", lambda: psd_moments_of_batch(force, None, sums, p, device))
+
+        def merge():
+            totals = _Totals(steps=prepared.steps)
+            totals.add(len(idx), moments[0], moments[1], sums, p.F_N)
+
+        clock("merge into the running moments", merge)
     record = {"environment": environment(device), "algorithm": args.algorithm, "times_s": times}
     for name, t in times.items():
         print(f"{name:<30} {t * 1e3:8.2f} ms")

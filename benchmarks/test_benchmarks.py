@@ -10,7 +10,7 @@ from mdroll import ALGORITHMS, Params, rough_lines, run_ensemble
 from mdroll.devices import synchronize, to_warp
 from mdroll.ensemble.force import launch_force, prepare_lines
 from mdroll.ensemble.pipeline import coupled_series
-from mdroll.ensemble.spectra import psd_rows
+from mdroll.ensemble.spectra import psd_moments_of_batch, series_sums
 
 #: realizations per benchmark and the largest CPU problem (points x realizations) per kind
 REALIZATIONS = {"cpu": 4, "cuda": 64}
@@ -77,11 +77,17 @@ def test_coupled_dynamics(benchmark, device, log2n, algorithm):
 
 
 def test_spectra(benchmark, device, log2n):
+    """The spectra stage of the pipeline on lines standing in for force series: one pass for the
+    sums and the decoupled final state, the real FFT, the fused PSD moments."""
     params, count = _setup(device, log2n)
     benchmark.group = f"spectra {device}"
-    psd = _rounds(benchmark, device, lambda lines: psd_rows(lines, params.dx, device),
-                  lambda seed: _lines(params, seed, count, device))
-    assert psd.shape == (count, params.n_points // 2 + 1)
+
+    def spectra(series):
+        sums = series_sums(series, params, device, decoupled=True)
+        return psd_moments_of_batch(series, None, sums, params, device)
+
+    force_moments, _, _ = _rounds(benchmark, device, spectra, lambda seed: _lines(params, seed, count, device))
+    assert force_moments.shape == (params.n_points // 2 + 1, 2)
 
 
 @pytest.mark.parametrize("algorithm", ALGORITHMS)

@@ -109,6 +109,12 @@ class Params:
                 f"dx = {self.dx!r} m is not allowed: the contact radius a = {self.a:.4g} m spans only "
                 f"{self.a / self.dx:.3g} springs; a/dx must be at least 10 (contact not resolved)"
             )
+        if self.omega_0 * self.dt >= 2.0:
+            raise ParameterError(
+                f"dx = {self.dx!r} m, v0 = {self.v0!r} m/s are not allowed: the step dt = dx/v0 = {self.dt:.4g} s gives "
+                f"omega_0 dt = {self.omega_0 * self.dt:.4g}; it must stay below 2 for the semi-implicit Euler step "
+                "(section 5) to be stable"
+            )
         if self.L < 4.0 * self.a:
             raise ParameterError(
                 f"L = {self.L!r} m is not allowed: it must be at least 4a = {4.0 * self.a:.4g} m "

@@ -51,10 +51,15 @@ def direct_force(h, params, x_wheel, d):
     return params.E_star * params.dx * np.sum(np.maximum(u, 0.0), axis=1)
 
 
-def psd(series, dx):
-    """Two-sided PSD C(q_k) = L/(2 pi) |B_k|^2, B_k = (1/N) sum_s (F_s - mean) e^{-i q_k x_s} (section 6)."""
+def psd(series, dx, window=False):
+    """Two-sided PSD C(q_k) = L/(2 pi) |B_k|^2, B_k = (1/N) sum_s (F_s - mean) w_s e^{-i q_k x_s}
+    (section 6), w = 1 or the Hann window 0.5 - 0.5 cos(2 pi s / N) scaled to mean square 1."""
     series = np.asarray(series, dtype=np.float64)
     n = series.shape[-1]
-    B = np.fft.rfft(series - series.mean(axis=-1, keepdims=True), axis=-1) / n
+    w = np.ones(n)
+    if window:
+        w = 0.5 - 0.5 * np.cos(2 * np.pi * np.arange(n) / n)
+        w /= np.sqrt(np.mean(w * w))
+    B = np.fft.rfft((series - series.mean(axis=-1, keepdims=True)) * w, axis=-1) / n
     q = 2 * np.pi * np.arange(n // 2 + 1) / (n * dx)
     return q, n * dx / (2 * np.pi) * np.abs(B) ** 2

@@ -114,13 +114,33 @@ def test_edge_against_direct_mean_shift_and_low_band():
     assert np.mean(C_edge[:, low]) / np.mean(C_direct[:, low]) == pytest.approx(1.0, abs=0.05)
 
 
+def _is_5_smooth(m):
+    for p in (2, 3, 5):
+        while m % p == 0:
+            m //= p
+    return m == 1
+
+
+def test_fast_length_is_the_largest_5_smooth_length():
+    from mdroll.ensemble.fft import fast_length
+
+    smooth = [m for m in range(1, 5001) if _is_5_smooth(m)]
+    for limit in range(1, 5001):
+        assert fast_length(limit) == max(m for m in smooth if m <= limit)
+    assert fast_length(1_046_492) == 1_036_800
+    with pytest.raises(ValueError, match="limit"):
+        fast_length(0)
+
+
 def test_open_boundary_geometry():
     p = SMALL
     lines = to_numpy(_lines(p, 2, 1, "cpu"))
     first, steps = step_range(p, "open", p.d0, lines.max())
     window = np.sqrt(p.R * (p.d0 + lines.max())) / p.dx
     assert first == int(np.floor(window))  # the first spring whose whole window lies on the line
-    assert first + steps - 1 + first == p.n_points - 1  # ... and the last
+    last_allowed = p.n_points - 1 - first  # the last spring whose window lies on the line
+    assert first + steps - 1 <= last_allowed
+    assert steps == max(m for m in range(1, last_allowed - first + 2) if _is_5_smooth(m))
     assert abs(first * p.dx - p.a) < 0.1 * p.a  # near x_w = a
     assert step_range(p, "periodic", p.d0, lines.max()) == (0, p.n_points)
 

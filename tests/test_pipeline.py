@@ -28,9 +28,12 @@ def test_averaged_psd_equals_mean_of_numpy_psds(device):
     assert result.force_mean == pytest.approx(force.mean(), rel=1e-12)
 
 
-def test_decoupled_acceleration_is_the_semi_implicit_euler_response(device):
-    """The chunked parallel response (RESPONSE_CHUNK steps a chunk) against a plain sequential loop."""
-    p = Params(L=0.2, n_real=1)  # ~3.8e4 steps: ~150 chunks
+@pytest.mark.parametrize("window", [False, True])
+def test_decoupled_spectra_are_those_of_the_semi_implicit_euler_response(device, window):
+    """The decoupled acceleration PSD, computed bin by bin from the force spectrum and the final
+    state (kernels/spectra.py), against the PSD of a plain sequential loop's series (section 5.1);
+    the Hann window, applied as a three-bin stencil, against the window applied to the series."""
+    p = Params(L=0.2, n_real=1)  # ~3.8e4 steps
     lines = rough_lines(p, 1, 1)
     first, steps = step_range(p, "open", p.d0, H_BOUND_SIGMAS * p.h0)
     force = contact_force(lines, p, "tree", "open", h_max=H_BOUND_SIGMAS * p.h0)[0]
@@ -40,18 +43,40 @@ def test_decoupled_acceleration_is_the_semi_implicit_euler_response(device):
         accel[s] = (p.F_N - force[s] - p.k_contact * y) / p.m
         v += p.dt * accel[s]
         y += p.dt * v
-    result = run_ensemble(p, seed=1, realizations=1, device=device, progress=False)
-    q, C = psd(accel[None, :], p.dx)
-    np.testing.assert_allclose(result.accel_psd[1:], C[0, 1:], rtol=1e-9)
+    result = run_ensemble(p, seed=1, realizations=1, device=device, progress=False, window=window)
+    for got, series in ((result.force_psd, force), (result.accel_psd, accel)):
+        _, C = psd(series[None, :], p.dx, window)
+        assert np.isfinite(got).all() and got.shape == C[0].shape
+        np.testing.assert_allclose(got[1:], C[0, 1:], rtol=1e-9, atol=1e-12 * C[0].max())
+    assert result.force_mean == pytest.approx(force.mean(), rel=1e-13)
+    assert result.force_rms == pytest.approx(force.std(), rel=1e-10)
+
+
+def test_coupled_windowed_spectra_are_those_of_the_coupled_series(device):
+    """Coupled mode: both series through the FFT, the Hann window as a stencil, against numpy."""
+    from mdroll.ensemble.force import prepare_lines
+    from mdroll.ensemble.pipeline import coupled_series
+
+    p = Params(L=0.03, n_real=2)
+    result = run_ensemble(p, seed=4, mode="coupled", device=device, progress=False, window=True)
+    lines = rough_lines(p, 4, 2, device=device)
+    prepared = prepare_lines(lines, p, "tree", "open", p.d0, device, h_max=H_BOUND_SIGMAS * p.h0)
+    force, accel = (a.numpy() for a in coupled_series(prepared, p, "tree", device))
+    for got, series in ((result.force_psd, force), (result.accel_psd, accel)):
+        _, C = psd(series, p.dx, window=True)
+        np.testing.assert_allclose(got, C.mean(axis=0), rtol=1e-9, atol=1e-12 * C.max())
+    assert result.force_rms == pytest.approx(force.std(axis=1).mean(), rel=1e-10)
 
 
 def test_same_result_for_any_batch_size(device):
     a = run_ensemble(P, seed=5, device=device, progress=False, batch=1)
     b = run_ensemble(P, seed=5, device=device, progress=False, batch=5)
     c = run_ensemble(P, seed=5, realizations=[4, 0, 3, 1, 2], device=device, progress=False, batch=2)
+    # to rounding: cuFFT picks its algorithm by batch size, so bins 1e4 below the peak differ
+    # by ~1e-16 of the peak (1e-12 of themselves)
     for other in (b, c):
-        np.testing.assert_allclose(other.force_psd, a.force_psd, rtol=1e-12, atol=0)
-        np.testing.assert_allclose(other.accel_psd, a.accel_psd, rtol=1e-12, atol=0)
+        np.testing.assert_allclose(other.force_psd, a.force_psd, rtol=1e-12, atol=1e-14 * a.force_psd.max())
+        np.testing.assert_allclose(other.accel_psd, a.accel_psd, rtol=1e-12, atol=1e-14 * a.accel_psd.max())
 
 
 def test_coupled_smooth_line_oscillates_at_omega_0_without_energy_growth(device):
@@ -187,13 +212,45 @@ def test_cli_config_file_and_existing_output(tmp_path):
     assert proc.returncode == 2 and "--force" in proc.stderr
 
 
-def test_euler_transfer_is_the_free_step_repeated():
-    from mdroll.ensemble.pipeline import euler_transfer
+def test_impulse_response_is_the_euler_step_repeated(device):
+    """Closed-form A^m b (Cayley-Hamilton, kernels/spectra.py) against the semi-implicit Euler
+    step applied m times to a unit input (section 5.1), for m up to 2e5 (a phase of ~15 rad)."""
+    from mdroll.devices import warp
+    from mdroll.kernels.spectra import euler_impulse_response
 
+    wp = warp()
     p = Params()
-    y, v = 1e-6, 2e-4
-    for _ in range(300):
-        a = -p.k_contact * y / p.m
-        v += p.dt * a
+    steps = 200_001
+    weights = wp.empty(steps, dtype=wp.vec2d, device=device)
+    phi = 2.0 * np.arcsin(0.5 * p.omega_0 * p.dt)
+    wp.launch(euler_impulse_response, dim=steps, inputs=[phi, p.dt, weights], device=device)
+    weights = weights.numpy()
+    w2 = p.k_contact / p.m
+    y, v = p.dt**2, p.dt  # one step with u = 1 from rest
+    reference = np.empty((steps, 2))
+    for m in range(steps):
+        reference[m] = y, v
+        v += p.dt * (-w2 * y)
         y += p.dt * v
-    np.testing.assert_allclose(euler_transfer(p, 300) @ [1e-6, 2e-4], [y, v], rtol=1e-12)
+    scale = np.abs(reference).max(axis=0)
+    assert np.max(np.abs(weights - reference) / scale) < 1e-9
+
+
+@pytest.mark.parametrize("steps", [1215, 1296])  # odd (3^5 5) and even: the mirrored bins differ
+@pytest.mark.parametrize("window", [False, True])
+def test_psd_moments_equal_numpy_mean_and_variance(device, steps, window):
+    """The fused spectra kernel against numpy: per-bin mean and M2 of the PSDs of given series."""
+    from mdroll.devices import to_warp
+    from mdroll.ensemble.spectra import psd_moments_of_batch
+
+    rng = np.random.default_rng(steps)
+    force = 3.0 + rng.standard_normal((4, steps))  # a mean to remove (the pipeline removes F_N first)
+    accel = rng.standard_normal((4, steps))
+    got_force, got_accel, not_finite = psd_moments_of_batch(
+        to_warp(force, device), to_warp(accel, device), np.zeros((4, 6)), P, device, window)
+    for got, series in ((got_force, force), (got_accel, accel)):
+        _, C = psd(series, P.dx, window)
+        got = to_numpy(got)
+        np.testing.assert_allclose(got[:, 0], C.mean(axis=0), rtol=1e-10, atol=1e-13 * C.max())
+        np.testing.assert_allclose(got[:, 1], C.var(axis=0) * 4, rtol=1e-8, atol=1e-12 * C.max() ** 2)
+    assert not not_finite.any()

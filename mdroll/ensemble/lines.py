@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 
 import numpy as np
 
-from ..devices import cupy_stream, cupy_view, is_cuda, resolve_device, warp
+from ..devices import resolve_device, warp
 from ..params import ParameterError, Params
 from .fft import irfft_rows
 
@@ -48,8 +49,10 @@ def rough_lines(params: Params, seed: int, realizations, device: str = "cpu"):
         C_1D(q) = lambda A |q|^(-2H-1) for q_min <= |q| <= q_max, else 0   (eq 33, two-sided),
 
     with fixed amplitudes and random phases phi_k uniform in [0, 2 pi) (eq 16-17), made by one
-    inverse real FFT; each line is then rescaled so that its RMS over the n points is exactly h0,
-    which fixes lambda A (eq 50; :attr:`Params.lambda_A`).
+    inverse real FFT; each line is scaled so that its RMS over the n points is exactly h0 (to
+    rounding), which fixes lambda A (eq 50; :attr:`Params.lambda_A`). The scale is set on the
+    spectrum by Parseval's theorem (:func:`mdroll.kernels.lines.line_scales`), not by a pass
+    over the line.
 
     The phase of mode k of realization j is a hash of (seed, j, k) alone (a counter-based
     generator, :func:`mdroll.kernels.lines.uniform_from_counter`), so a line is the same to
@@ -70,7 +73,7 @@ def rough_lines(params: Params, seed: int, realizations, device: str = "cpu"):
     lines : (R, n) float64, metres
         A NumPy array on the CPU; a Warp array (``.numpy()``, CuPy via ``cupy.asarray``) on CUDA.
     """
-    from ..kernels.lines import random_phase_spectrum
+    from ..kernels.lines import line_scales, random_phase_spectrum
 
     wp = warp()
     device = resolve_device(device)
@@ -78,28 +81,23 @@ def rough_lines(params: Params, seed: int, realizations, device: str = "cpu"):
     indices = realization_indices(realizations)
     n = params.n_points
     k_first, k_last = params.mode_range
+    exponent = -(params.H + 0.5)
+    nyquist = n // 2 if n % 2 == 0 and k_last == n // 2 else -1
+    rows = wp.array(indices, dtype=wp.int64, device=device)
+    scales = wp.empty(indices.size, dtype=wp.float64, device=device)
+    wp.launch(line_scales, dim=indices.size,
+              inputs=[rows, wp.uint64(seed), k_first, nyquist, exponent,
+                      _two_sum_below_nyquist(n, k_first, k_last, exponent), params.h0 * n, scales], device=device)
     spectrum = wp.empty((indices.size, n // 2 + 1), dtype=wp.vec2d, device=device)
-    wp.launch(
-        random_phase_spectrum,
-        dim=spectrum.shape,
-        inputs=[
-            wp.array(indices, dtype=wp.int64, device=device),
-            wp.uint64(seed),
-            k_first,
-            k_last,
-            -(params.H + 0.5),
-            float(n),
-            spectrum,
-        ],
-        device=device,
-    )
-    lines = irfft_rows(spectrum, n, device)
-    if is_cuda(device):
-        import cupy
+    wp.launch(random_phase_spectrum, dim=spectrum.shape,
+              inputs=[rows, wp.uint64(seed), k_first, k_last, nyquist, exponent, scales, spectrum], device=device)
+    return irfft_rows(spectrum, n, device)
 
-        with cupy_stream(device):
-            x = cupy_view(lines)
-            x *= params.h0 / cupy.sqrt(cupy.mean(x * x, axis=1, keepdims=True))
-        return lines
-    lines *= params.h0 / np.sqrt(np.mean(lines * lines, axis=1, keepdims=True))
-    return lines
+
+@functools.lru_cache(maxsize=16)
+def _two_sum_below_nyquist(n: int, k_first: int, k_last: int, exponent: float) -> float:
+    """``2 sum a_k^2`` over the generated modes 0 < k < n/2, ``a_k = (k / k_first)^exponent``
+    (the kernels' :func:`mdroll.kernels.lines.mode_amplitude`): every line's share of Parseval's
+    sum that does not depend on its phases."""
+    k = np.arange(k_first, min(k_last, (n - 1) // 2) + 1, dtype=np.float64)
+    return float(2.0 * np.sum((k / k_first) ** (2.0 * exponent)))

@@ -14,7 +14,8 @@ from ..devices import resolve_device, synchronize, to_warp, warp
 from ..params import ParameterError, Params
 from .force import ALGORITHMS, BOUNDARIES, DEFAULT_LEAF_SIZE, check_choice, launch_force, prepare_lines
 from .lines import check_seed, realization_indices, rough_lines
-from .spectra import RunningMoments, array_module, array_rows, psd_rows, to_host, wavenumbers
+from .spectra import (LOST, NOT_FINITE, SUM_DEVIATION, SUM_SQUARES, RunningMoments, array_module,
+                      psd_moments_of_batch, series_sums, wavenumbers)
 
 MODES = ("decoupled", "coupled")
 #: The open-boundary wheel range of an ensemble is set from d0 + H_BOUND_SIGMAS * h0, not from
@@ -159,12 +160,10 @@ def _host_available_bytes() -> int:
     return 4 * 2**30
 
 
-def _check_finite(values, what: str, stage: str, indices: np.ndarray) -> None:
-    """Raise NonFiniteError naming the first realization whose row holds NaN or infinity."""
-    xp = array_module(values)
-    finite_rows = xp.isfinite(values).all(axis=1)
-    if not bool(finite_rows.all()):
-        row = int(np.argmin(to_host(finite_rows)))
+def _raise_on_rows(bad_rows: np.ndarray, what: str, stage: str, indices: np.ndarray) -> None:
+    """Raise NonFiniteError naming the first realization flagged in ``bad_rows`` (host booleans)."""
+    if bad_rows.any():
+        row = int(np.argmax(bad_rows))
         raise NonFiniteError(f"{what} is not finite in realization {int(indices[row])} at stage {stage!r}")
 
 
@@ -241,18 +240,18 @@ def run_ensemble(
         lines = stage("generate", lambda: to_warp(rough_lines(params, seed, idx, device=device), device))
         prepared = stage("build", lambda: prepare_lines(lines, params, algorithm, boundary, d0, device, leaf_size, h_bound))
         totals.steps = prepared.steps
-        if mode == "decoupled":
+        decoupled = mode == "decoupled"
+        if decoupled:
             force = stage("force", lambda: launch_force(prepared, params, algorithm, d0, device))
-            accel = stage("response", lambda: _decoupled(force, params, device))
+            accel = None
         else:
             force, accel = stage("response", lambda: coupled_series(prepared, params, algorithm, device))
-        force_rows = array_rows(force, device)
-        _check_finite(force_rows, "force", "force" if mode == "decoupled" else "response", idx)
-        force_psd = stage("spectra", lambda: psd_rows(force, params.dx, device, window))
-        accel_psd = stage("spectra", lambda: psd_rows(accel, params.dx, device, window))
-        _check_finite(force_psd, "force PSD", "spectra", idx)
-        _check_finite(accel_psd, "acceleration PSD", "spectra", idx)
-        stage("spectra", lambda: totals.add(force_psd, accel_psd, force_rows))
+        sums = stage("response", lambda: series_sums(force, params, device, decoupled))
+        _raise_on_rows(sums[:, NOT_FINITE] > 0, "force", "force" if decoupled else "response", idx)
+        force_moments, accel_moments, psd_not_finite = stage(
+            "spectra", lambda: psd_moments_of_batch(force, accel, sums, params, device, window))
+        _raise_on_rows(psd_not_finite != 0, "force or acceleration PSD", "spectra", idx)
+        stage("spectra", lambda: totals.add(len(idx), force_moments, accel_moments, sums, params.F_N))
         if checkpoint is not None:
             totals.save(checkpoint, key)
         bar.update(len(idx))
@@ -285,16 +284,21 @@ class _Totals:
     lost: int = 0
     timings: dict = field(default_factory=lambda: dict.fromkeys(STAGES, 0.0))
 
-    def add(self, force_psd, accel_psd, force_rows) -> None:
+    def add(self, rows: int, force_moments, accel_moments, sums: np.ndarray, F_N: float) -> None:
+        """Merge a batch of ``rows`` realizations: PSD moments from :func:`psd_moments_of_batch`,
+        force sums from :func:`series_sums` (deviations from ``F_N``, N)."""
         if self.force is None:
-            xp = array_module(force_psd)
-            self.force, self.accel = RunningMoments(force_psd.shape[1], xp), RunningMoments(accel_psd.shape[1], xp)
-        self.force.add(force_psd)
-        self.accel.add(accel_psd)
-        self.force_mean_sum += float(force_rows.mean(axis=1).sum())
-        self.force_rms_sum += float(force_rows.std(axis=1).sum())
-        self.lost += int((force_rows <= 0.0).sum())
-        self.done += force_rows.shape[0]
+            xp = array_module(force_moments)
+            bins = force_moments.shape[0]
+            self.force, self.accel = RunningMoments(bins, xp), RunningMoments(bins, xp)
+        self.force.add_moments(rows, force_moments)
+        self.accel.add_moments(rows, accel_moments)
+        mean_deviation = sums[:, SUM_DEVIATION] / self.steps
+        variance = np.maximum(sums[:, SUM_SQUARES] / self.steps - mean_deviation**2, 0.0)
+        self.force_mean_sum += float(np.sum(F_N + mean_deviation))
+        self.force_rms_sum += float(np.sum(np.sqrt(variance)))
+        self.lost += int(sums[:, LOST].sum())
+        self.done += rows
 
     def save(self, path, key: dict) -> None:
         """Write the totals and the run's identity ``key`` to ``path`` atomically."""
@@ -339,37 +343,6 @@ def read_checkpoint(path) -> tuple[dict, dict]:
 def _short(value) -> str:
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + "..."
-
-
-#: Steps per chunk of the parallel decoupled response.
-RESPONSE_CHUNK = 256
-
-
-def euler_transfer(params: Params, steps: int) -> np.ndarray:
-    """The 2x2 matrix that carries (y, y') over ``steps`` free semi-implicit Euler steps of
-    ``m y'' = -k_c y``: one step is ``[[1 - dt^2 w^2, dt], [-dt w^2, 1]]`` with w^2 = k_c / m."""
-    dt, w2 = params.dt, params.k_contact / params.m
-    one_step = np.array([[1.0 - dt * dt * w2, dt], [-dt * w2, 1.0]])
-    return np.linalg.matrix_power(one_step, steps)
-
-
-def _decoupled(force, params: Params, device: str):
-    """Acceleration (m/s^2) of the wheel on the linearized contact spring (section 5.1)."""
-    from ..kernels.dynamics import decoupled_chunk_ends, decoupled_chunk_starts, decoupled_chunks
-
-    wp = warp()
-    rows, steps = force.shape
-    chunks = -(-steps // RESPONSE_CHUNK)
-    ends = wp.empty((rows, chunks), dtype=wp.vec2d, device=device)
-    starts = wp.empty_like(ends)
-    accel = wp.empty(force.shape, dtype=wp.float64, device=device)
-    common = [params.F_N, params.k_contact, 1.0 / params.m, params.dt]
-    wp.launch(decoupled_chunk_ends, dim=(rows, chunks), inputs=[force, steps, RESPONSE_CHUNK, *common, ends], device=device)
-    transfer = wp.mat22d(*euler_transfer(params, RESPONSE_CHUNK).ravel())
-    wp.launch(decoupled_chunk_starts, dim=rows, inputs=[ends, chunks, transfer, starts], device=device)
-    wp.launch(decoupled_chunks, dim=(rows, chunks), inputs=[force, steps, RESPONSE_CHUNK, starts, *common, accel],
-              device=device)
-    return accel
 
 
 def coupled_series(prepared, params: Params, algorithm: str, device: str, d_start: float | None = None):

@@ -13,7 +13,8 @@ import math
 
 import numpy as np
 
-from ..devices import cupy_stream, cupy_view, is_cuda
+from ..devices import cupy_stream, cupy_view, is_cuda, warp
+from ..params import Params
 from .fft import rfft_rows
 
 
@@ -69,6 +70,81 @@ def to_host(array) -> np.ndarray:
     return np.asarray(array)
 
 
+def complex_rows(spectrum, device: str):
+    """A (R, K) ``wp.vec2d`` Warp view of a complex128 NumPy (CPU) or CuPy (CUDA) array."""
+    wp = warp()
+    rows, bins = spectrum.shape
+    if is_cuda(device):
+        import cupy
+
+        return wp.from_dlpack(spectrum.view(cupy.float64).reshape(rows, bins, 2), dtype=wp.vec2d)
+    return wp.array(np.ascontiguousarray(spectrum).view(np.float64).reshape(rows, bins, 2), dtype=wp.vec2d,
+                    device="cpu", copy=False)
+
+
+#: Columns of :func:`series_sums`.
+SUM_DEVIATION, SUM_SQUARES, LOST, NOT_FINITE, FINAL_Y, FINAL_V = range(6)
+
+
+def series_sums(force, params: Params, device: str, decoupled: bool) -> np.ndarray:
+    """Per row of ``force`` (R, N; N), one pass over the series: the host (R, 6) array of
+    ``sum (F - F_N)`` (N), ``sum (F - F_N)^2`` (N^2), steps with F <= 0, non-finite steps and,
+    when ``decoupled``, the state (y_N (m), y'_N (m/s)) after the last step of the decoupled
+    wheel started at rest (section 5.1; zeros otherwise). Leaves ``F - F_N`` in ``force`` (a
+    finite row's spectrum is then free of the mean's rounding; :func:`series_summary`)."""
+    from ..kernels.spectra import SUMMARY_THREADS, add_partials, euler_impulse_response, series_summary
+
+    wp = warp()
+    rows, steps = force.shape
+    threads = SUMMARY_THREADS if is_cuda(device) else 1
+    if decoupled:
+        weights = wp.empty(steps, dtype=wp.vec2d, device=device)
+        phi = 2.0 * math.asin(0.5 * params.omega_0 * params.dt)
+        wp.launch(euler_impulse_response, dim=steps, inputs=[phi, params.dt, weights], device=device)
+    else:
+        weights = wp.empty(1, dtype=wp.vec2d, device=device)
+    partial = wp.empty((rows, threads, 6), dtype=wp.float64, device=device)
+    wp.launch(series_summary, dim=(rows, threads),
+              inputs=[force, steps, threads, params.F_N, 1.0 / params.m, weights, int(decoupled), partial], device=device)
+    sums = wp.empty((rows, 6), dtype=wp.float64, device=device)
+    wp.launch(add_partials, dim=(rows, 6), inputs=[partial, threads, sums], device=device)
+    return sums.numpy()
+
+
+def psd_moments_of_batch(force, accel, sums: np.ndarray, params: Params, device: str, window: bool = False):
+    """Per-bin mean and M2 over the rows of the force and acceleration PSDs (section 6).
+
+    One real FFT of each force row (and of each acceleration row when ``accel`` is given, the
+    coupled mode); without ``accel`` the acceleration's spectrum is the decoupled wheel's,
+    computed from the force's and the final states in ``sums`` (:func:`series_sums`) bin by bin
+    (:class:`mdroll.kernels.spectra.ResponseBin`): exact, and no acceleration series is needed.
+
+    Returns ``(force (K, 2), accel (K, 2), not_finite (R,))``: columns mean and M2 (NumPy on the
+    CPU, CuPy on CUDA), and a host flag per row whose PSD has NaN or infinity.
+    """
+    from ..kernels.spectra import psd_moments
+
+    wp = warp()
+    rows, steps = force.shape
+    force_spectrum = complex_rows(rfft_rows(force, device), device)
+    accel_spectrum = force_spectrum if accel is None else complex_rows(rfft_rows(accel, device), device)
+    bins = force_spectrum.shape[1]
+    force_moments = wp.empty(bins, dtype=wp.vec2d, device=device)
+    accel_moments = wp.empty(bins, dtype=wp.vec2d, device=device)
+    not_finite = wp.zeros(rows, dtype=wp.int32, device=device)
+    wp.launch(
+        psd_moments,
+        dim=bins,
+        inputs=[force_spectrum, accel_spectrum, wp.array(sums, dtype=wp.float64, device=device), int(accel is None),
+                int(window), steps, params.dx / (2.0 * math.pi * steps), params.omega_0**2, params.dt, 1.0 / params.m,
+                force_moments, accel_moments, not_finite],
+        device=device,
+    )
+    views = [cupy_view(m).reshape(bins, 2) if is_cuda(device) else m.numpy().reshape(bins, 2)
+             for m in (force_moments, accel_moments)]
+    return views[0], views[1], not_finite.numpy()
+
+
 class RunningMoments:
     """Per-bin count, mean and sum of squared deviations, merged batch by batch (Chan et al.).
 
@@ -93,6 +169,10 @@ class RunningMoments:
         """Merge a batch of rows (realizations x bins)."""
         mean_b = rows.mean(axis=0)
         self.merge(rows.shape[0], mean_b, ((rows - mean_b) ** 2).sum(axis=0))
+
+    def add_moments(self, n_b: int, moments) -> None:
+        """Merge a batch's (bins, 2) columns of mean and M2 (:func:`psd_moments_of_batch`)."""
+        self.merge(n_b, moments[:, 0], moments[:, 1])
 
     def merge(self, n_b: int, mean_b, m2_b) -> None:
         """Merge the moments of another set of ``n_b`` samples (Chan et al.): count, mean, M2."""

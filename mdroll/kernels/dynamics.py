@@ -1,10 +1,7 @@
-"""Wheel dynamics with the semi-implicit (symplectic) Euler step (physics.md section 5).
+"""Coupled wheel dynamics with the semi-implicit (symplectic) Euler step (physics.md section 5, eq 13).
 
-Decoupled (section 5.1): the response is linear, so it runs in chunks in parallel: each chunk
-from rest, then the states entering the chunks by one sequential pass per row over the chunks
-(the free evolution over a chunk is a fixed 2x2 matrix), then each chunk again from its true
-state. Coupled (eq 13): time is sequential per realization; one block per realization shares each
-step's spring sum.
+Time is sequential per realization; one block per realization shares each step's spring sum.
+The decoupled response (section 5.1) is linear and needs no time loop: kernels/spectra.py.
 Semi-implicit Euler: ``v += dt a(y)`` first, then ``y += dt v`` with the new v; plain forward
 Euler grows the oscillation energy by ~34 % over 10^6 steps at the defaults.
 """
@@ -18,85 +15,6 @@ from .tree import force_tree
 DIRECT = wp.constant(0)
 TREE = wp.constant(1)
 EDGE = wp.constant(2)
-
-
-@wp.func
-def euler_steps(
-    force: wp.array2d(dtype=wp.float64),
-    r: int,
-    start: int,
-    stop: int,
-    state: wp.vec2d,
-    F_N: wp.float64,
-    k_contact: wp.float64,
-    inv_mass: wp.float64,
-    dt: wp.float64,
-    accel: wp.array2d(dtype=wp.float64),
-    write: int,
-) -> wp.vec2d:
-    """Section 5.1, ``m y'' = F_N - F(t) - k_c y``, over steps [start, stop) from state (y, y')
-    (m, m/s); writes ``accel[r, s] = y''`` (m/s^2) when ``write`` is 1; returns the state at ``stop``."""
-    y = state[0]
-    v = state[1]
-    for s in range(start, stop):
-        a = (F_N - force[r, s] - k_contact * y) * inv_mass
-        if write == 1:
-            accel[r, s] = a
-        v += dt * a
-        y += dt * v
-    return wp.vec2d(y, v)
-
-
-@wp.kernel
-def decoupled_chunk_ends(
-    force: wp.array2d(dtype=wp.float64),
-    steps: int,
-    chunk: int,
-    F_N: wp.float64,
-    k_contact: wp.float64,
-    inv_mass: wp.float64,
-    dt: wp.float64,
-    ends: wp.array2d(dtype=wp.vec2d),
-):
-    """Pass 1 of the chunked response: the state after chunk c of row r, started from rest."""
-    r, c = wp.tid()
-    start = c * chunk
-    ends[r, c] = euler_steps(force, r, start, wp.min(start + chunk, steps), wp.vec2d(), F_N, k_contact, inv_mass, dt,
-                             force, 0)
-
-
-@wp.kernel
-def decoupled_chunk_starts(
-    ends: wp.array2d(dtype=wp.vec2d),
-    chunks: int,
-    transfer: wp.mat22d,
-    starts: wp.array2d(dtype=wp.vec2d),
-):
-    """Pass 2: the true state entering each chunk, ``x_{c+1} = T x_c + ends_c`` with T the free
-    evolution over one chunk (the step matrix to the power ``chunk``) and x_0 = 0 (at rest)."""
-    r = wp.tid()
-    x = wp.vec2d()
-    for c in range(chunks):
-        starts[r, c] = x
-        x = transfer * x + ends[r, c]
-
-
-@wp.kernel
-def decoupled_chunks(
-    force: wp.array2d(dtype=wp.float64),
-    steps: int,
-    chunk: int,
-    starts: wp.array2d(dtype=wp.vec2d),
-    F_N: wp.float64,
-    k_contact: wp.float64,
-    inv_mass: wp.float64,
-    dt: wp.float64,
-    accel: wp.array2d(dtype=wp.float64),
-):
-    """Pass 3: each chunk again from its true entering state, writing the acceleration (m/s^2)."""
-    r, c = wp.tid()
-    start = c * chunk
-    euler_steps(force, r, start, wp.min(start + chunk, steps), starts[r, c], F_N, k_contact, inv_mass, dt, accel, 1)
 
 
 #: Threads sharing one realization in the coupled dynamics on CUDA: one warp, so the per-step

@@ -1,4 +1,4 @@
-"""Kernels that make and pre-process rough lines: random spectra, bounds, prefix sums, min/max tree.
+"""Kernels that make and pre-process rough lines: random spectra, bounds, min/max tree.
 
 All work on a batch of R lines stored as rows of a 2D float64 array.
 """
@@ -13,8 +13,8 @@ GOLDEN_GAMMA = wp.constant(wp.uint64(0x9E3779B97F4A7C15))
 MIX_MULTIPLIER_1 = wp.constant(wp.uint64(0xBF58476D1CE4E5B9))
 MIX_MULTIPLIER_2 = wp.constant(wp.uint64(0x94D049BB133111EB))
 
-#: Springs per thread in the blocked reductions and scans.
-ROW_BLOCK = wp.constant(256)
+#: Threads sharing a row in the bounds reduction on CUDA.
+BOUNDS_THREADS = 256
 
 
 @wp.func
@@ -38,28 +38,62 @@ def uniform_from_counter(seed: wp.uint64, realization: wp.int64, mode: int) -> w
     return wp.float64(z >> wp.uint64(11)) * wp.float64(1.1102230246251565e-16)
 
 
+@wp.func
+def mode_amplitude(k: int, k_first: int, exponent: wp.float64) -> wp.float64:
+    """``(k / k_first)^exponent``: with ``exponent = -(H + 1/2)`` the amplitude of mode k follows
+    ``sqrt(C_1D(q_k))``, ``C_1D ~ q^(-2H-1)`` (eq 33), up to the line's scale."""
+    return wp.pow(wp.float64(k) / wp.float64(k_first), exponent)
+
+
+@wp.kernel
+def line_scales(
+    realizations: wp.array(dtype=wp.int64),
+    seed: wp.uint64,
+    k_first: int,
+    nyquist: int,
+    exponent: wp.float64,
+    two_sum_below_nyquist: wp.float64,
+    target: wp.float64,
+    scales: wp.array(dtype=wp.float64),
+):
+    """The factor on each row's amplitudes that makes the line's RMS ``target / n`` (h0 for
+    ``target = h0 n``), by Parseval before the inverse FFT instead of a pass over the line after:
+    ``mean(h^2) = (scale / n)^2 (2 sum_{0 < k < n/2} a_k^2 + (a_{n/2} cos phi_{n/2})^2)``. Only the
+    Nyquist mode (``nyquist`` = n/2 when it is generated, else -1) is real, so only its share
+    depends on the phase; ``two_sum_below_nyquist`` is the rest."""
+    r = wp.tid()
+    total = two_sum_below_nyquist
+    if nyquist > 0:
+        a = mode_amplitude(nyquist, k_first, exponent) * wp.cos(TWO_PI * uniform_from_counter(seed, realizations[r], nyquist))
+        total += a * a
+    scales[r] = target / wp.sqrt(total)
+
+
 @wp.kernel
 def random_phase_spectrum(
     realizations: wp.array(dtype=wp.int64),
     seed: wp.uint64,
     k_first: int,
     k_last: int,
+    nyquist: int,
     exponent: wp.float64,
-    scale: wp.float64,
+    scales: wp.array(dtype=wp.float64),
     spectrum: wp.array2d(dtype=wp.vec2d),
 ):
     """Half spectrum X_k (k = 0..n/2) of one rough line per row, for an inverse real FFT.
 
-    ``X_k = scale (k / k_first)^exponent exp(i phi_k)`` for k_first <= k <= k_last, else 0, with
-    ``phi_k = 2 pi u(seed, realization, k)`` (eq 16-17). With ``exponent = -(H + 1/2)`` the
-    amplitude follows ``sqrt(C_1D(q_k))``, ``C_1D ~ q^(-2H-1)`` (eq 33).
+    ``X_k = scales[r] a_k exp(i phi_k)`` (:func:`mode_amplitude`) for k_first <= k <= k_last,
+    else 0, with ``phi_k = 2 pi u(seed, realization, k)`` (eq 16-17). The Nyquist mode (k =
+    ``nyquist``) of a real line is real: ``X_{n/2} = scales[r] a_{n/2} cos(phi)``.
     """
     r, k = wp.tid()
     value = wp.vec2d(wp.float64(0.0), wp.float64(0.0))
     if k >= k_first and k <= k_last:
-        amplitude = scale * wp.pow(wp.float64(k) / wp.float64(k_first), exponent)
+        amplitude = scales[r] * mode_amplitude(k, k_first, exponent)
         phase = TWO_PI * uniform_from_counter(seed, realizations[r], k)
         value = wp.vec2d(amplitude * wp.cos(phase), amplitude * wp.sin(phase))
+        if k == nyquist:
+            value = wp.vec2d(value[0], wp.float64(0.0))
     spectrum[r, k] = value
 
 
@@ -78,50 +112,22 @@ def row_min_max(partial: wp.array2d(dtype=wp.vec2d), n_blocks: int, bounds: wp.a
 
 
 @wp.kernel
-def block_sums(h: wp.array2d(dtype=wp.float64), n: int, sums: wp.array2d(dtype=wp.float64)):
-    """Sum of h over each block of ROW_BLOCK springs of each row."""
-    r, b = wp.tid()
-    start = b * ROW_BLOCK
-    end = wp.min(start + ROW_BLOCK, n)
-    acc = wp.float64(0.0)
-    for i in range(start, end):
-        acc += h[r, i]
-    sums[r, b] = acc
-
-
-@wp.kernel
-def scan_block_sums(sums: wp.array2d(dtype=wp.float64), n_blocks: int, offsets: wp.array2d(dtype=wp.float64)):
-    """Exclusive scan of the block sums of each row: the prefix sum at each block's start."""
-    r = wp.tid()
-    acc = wp.float64(0.0)
-    for b in range(n_blocks):
-        offsets[r, b] = acc
-        acc += sums[r, b]
-
-
-@wp.kernel
-def block_prefix(
-    h: wp.array2d(dtype=wp.float64),
-    n: int,
-    offsets: wp.array2d(dtype=wp.float64),
-    prefix: wp.array2d(dtype=wp.float64),
-):
-    """Cumulative roughness ``S_j = sum_{i<j} h_i`` for j = 0..n (eq 18), row by row."""
-    r, b = wp.tid()
-    start = b * ROW_BLOCK
-    end = wp.min(start + ROW_BLOCK, n)
-    acc = offsets[r, b]
-    if b == 0:
-        prefix[r, 0] = wp.float64(0.0)
-    for i in range(start, end):
-        acc += h[r, i]
-        prefix[r, i + 1] = acc
+def strided_min_max(h: wp.array2d(dtype=wp.float64), n: int, threads: int, out: wp.array2d(dtype=wp.vec2d)):
+    """(min h, max h) over springs t, t + threads, ... of each row, for thread t: neighbouring
+    threads read neighbouring springs (coalesced), the partials of the row bounds."""
+    r, t = wp.tid()
+    lo = h[r, t]
+    hi = lo
+    for i in range(t + threads, n, threads):
+        lo = wp.min(lo, h[r, i])
+        hi = wp.max(hi, h[r, i])
+    out[r, t] = wp.vec2d(lo, hi)
 
 
 @wp.kernel
 def segment_min_max(h: wp.array2d(dtype=wp.float64), n: int, segment: int, out: wp.array2d(dtype=wp.vec2d)):
     """(min h, max h) of each segment of ``segment`` springs of each row: the leaves of the
-    min/max tree, or the partials of the row bounds."""
+    min/max tree."""
     r, j = wp.tid()
     start = j * segment
     end = wp.min(start + segment, n)

@@ -1,0 +1,39 @@
+"""Warm end-to-end decoupled runs at thesis scale (300 x 2^20, open boundary) per algorithm:
+median of 3 after a warm-up run, with the pipeline's own stage timings.
+
+    python benchmarks/e2e_thesis.py --device cuda:0 --out e2e.json
+"""
+
+import argparse
+import json
+
+from mdroll import Params, run_ensemble
+from mdroll.bench import timed
+from mdroll.devices import resolve_device
+from mdroll.ensemble.force import ALGORITHMS
+from mdroll.provenance import environment
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--device", default="cuda:0")
+    parser.add_argument("--out", default="e2e.json")
+    args = parser.parse_args()
+    device = resolve_device(args.device)
+    p = Params(L=5.24288, n_real=300)
+    record = {"environment": environment(device), "params": p.as_dict(), "end_to_end": {}}
+    for algorithm in ALGORITHMS:
+        def run():
+            return run_ensemble(p, algorithm=algorithm, device=device, progress=False)
+
+        run()
+        total, times = timed(run, device, 3)
+        stages = run().timings
+        record["end_to_end"][algorithm] = {"total_s": total, "times_s": times, "stages_s": stages}
+        print(f"{algorithm:<7} {total * 1e3:8.1f} ms  " + "  ".join(f"{k} {v * 1e3:.1f}" for k, v in stages.items()))
+    with open(args.out, "w") as f:
+        json.dump(record, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()

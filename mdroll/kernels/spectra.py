@@ -1,0 +1,247 @@
+"""Kernels of the spectra stage (physics.md sections 5.1 and 6): one pass over each force series
+for its sums and the decoupled wheel's final state, one pass over the half spectra for the PSDs
+and their ensemble moments.
+
+Complex numbers are ``wp.vec2d`` (real, imaginary), the layout of complex128.
+"""
+
+import warp as wp
+
+TWO_PI = wp.constant(wp.float64(6.283185307179586))
+#: 1 / sqrt(3/8): scales the Hann window to mean square 1, which keeps the total power.
+HANN_NORM = wp.constant(wp.float64(1.632993161855452))
+#: Threads sharing one series in :func:`series_summary` on CUDA; their partial sums are added
+#: in a fixed order, so the result does not depend on scheduling.
+SUMMARY_THREADS = 1024
+
+
+@wp.func
+def complex_mul(a: wp.vec2d, b: wp.vec2d) -> wp.vec2d:
+    return wp.vec2d(a[0] * b[0] - a[1] * b[1], a[0] * b[1] + a[1] * b[0])
+
+
+@wp.func
+def complex_div(a: wp.vec2d, b: wp.vec2d) -> wp.vec2d:
+    return complex_mul(a, wp.vec2d(b[0], -b[1])) / wp.dot(b, b)
+
+
+@wp.kernel
+def euler_impulse_response(phi: wp.float64, dt: wp.float64, weights: wp.array(dtype=wp.vec2d)):
+    """``weights[m] = A^m b``: the state (y, y') m steps after a unit input ``u`` (m/s^2) of one
+    semi-implicit Euler step, ``x_{s+1} = A x_s + b u_s`` with ``A = [[1 - h^2, dt], [-h^2/dt, 1]]``,
+    ``b = (dt^2, dt)``, h = omega dt (section 5.1).
+
+    det A = 1 and tr A = 2 cos(phi) with ``phi = 2 asin(h / 2)``, so by Cayley-Hamilton
+    ``A^m = (sin(m phi) A - sin((m - 1) phi) I) / sin(phi)``: exact for every m, where a
+    recursion over 10^6 steps would accumulate rounding.
+    """
+    m = wp.tid()
+    h2 = wp.float64(4.0) * wp.sin(phi * wp.float64(0.5)) * wp.sin(phi * wp.float64(0.5))
+    s1 = wp.sin(phi)
+    p = wp.sin(wp.float64(m) * phi) / s1
+    q = wp.sin(wp.float64(m - 1) * phi) / s1
+    # A b = ((1 - h^2) dt^2 + dt^2, -h^2 dt + dt) = dt (dt (2 - h^2), 1 - h^2)
+    ab = dt * wp.vec2d(dt * (wp.float64(2.0) - h2), wp.float64(1.0) - h2)
+    weights[m] = p * ab - q * wp.vec2d(dt * dt, dt)
+
+
+@wp.kernel
+def series_summary(
+    force: wp.array2d(dtype=wp.float64),
+    steps: int,
+    threads: int,
+    F_N: wp.float64,
+    inv_mass: wp.float64,
+    weights: wp.array(dtype=wp.vec2d),
+    with_state: int,
+    partial: wp.array3d(dtype=wp.float64),
+):
+    """Partial sums of one force series (N) per thread ``t`` of its row, over steps t, t + threads, ...:
+
+    ``partial[r, t] = (sum (F - F_N), sum (F - F_N)^2, #(F <= 0), #(F not finite), x_N)``,
+
+    with ``x_N = sum_s weights[N-1-s] (F_N - F_s) / m`` the decoupled wheel's state (y, y') (m,
+    m/s) after the last step, started at rest (section 5.1; ``weights`` from
+    :func:`euler_impulse_response`), when ``with_state`` is 1.
+
+    Leaves ``F - F_N`` in ``force``: the spectra then see the ~1 N signal without the 40 kN
+    mean, whose rounding would otherwise leak into every bin of the FFT; for the same reason the
+    sums are of deviations.
+    """
+    r, t = wp.tid()
+    total = wp.float64(0.0)
+    squares = wp.float64(0.0)
+    lost = wp.float64(0.0)
+    bad = wp.float64(0.0)
+    state = wp.vec2d()
+    for s in range(t, steps, threads):
+        F = force[r, s]
+        if not wp.isfinite(F):
+            bad += wp.float64(1.0)
+        else:
+            deviation = F - F_N
+            force[r, s] = deviation
+            total += deviation
+            squares += deviation * deviation
+            if F <= wp.float64(0.0):
+                lost += wp.float64(1.0)
+            if with_state == 1:
+                state += deviation * weights[steps - 1 - s]
+    partial[r, t, 0] = total
+    partial[r, t, 1] = squares
+    partial[r, t, 2] = lost
+    partial[r, t, 3] = bad
+    partial[r, t, 4] = -inv_mass * state[0]
+    partial[r, t, 5] = -inv_mass * state[1]
+
+
+@wp.kernel
+def add_partials(partial: wp.array3d(dtype=wp.float64), threads: int, sums: wp.array2d(dtype=wp.float64)):
+    """``sums[r, j] = sum_t partial[r, t, j]``, in the order of t."""
+    r, j = wp.tid()
+    acc = wp.float64(0.0)
+    for t in range(threads):
+        acc += partial[r, t, j]
+    sums[r, j] = acc
+
+
+@wp.struct
+class ResponseBin:
+    """Section 5.1 in the frequency domain at one bin, ``z = exp(2 pi i k / N)``: the DFT of the
+    decoupled acceleration over N steps is ``Y = G U + c_y y_N + c_v y'_N`` with U the DFT of
+    ``u = (F_N - F) / m`` and (y_N, y'_N) the state after the last step (from rest at s = 0).
+    From ``z (X + x_N) = A X + b U`` and ``y'' = u - omega^2 y``:
+    ``G = (z - 1)^2 / D``, ``c_y = omega^2 z (z - 1) / D``, ``c_v = omega^2 dt z / D``,
+    ``D = (z - 1)^2 + h^2 z``, h = omega dt."""
+
+    gain: wp.vec2d
+    c_y: wp.vec2d
+    c_v: wp.vec2d
+
+
+@wp.func
+def response_bin(j: int, steps: int, omega2: wp.float64, dt: wp.float64) -> ResponseBin:
+    theta = TWO_PI * wp.float64(j) / wp.float64(steps)
+    half = wp.sin(theta * wp.float64(0.5))
+    z = wp.vec2d(wp.cos(theta), wp.sin(theta))
+    # z - 1 with its real part -2 sin^2(theta/2): no cancellation at small theta
+    zm1 = wp.vec2d(wp.float64(-2.0) * half * half, z[1])
+    zm1_sq = complex_mul(zm1, zm1)
+    denominator = zm1_sq + omega2 * dt * dt * z
+    out = ResponseBin()
+    out.gain = complex_div(zm1_sq, denominator)
+    out.c_y = omega2 * complex_div(complex_mul(z, zm1), denominator)
+    out.c_v = omega2 * dt * complex_div(z, denominator)
+    return out
+
+
+@wp.func
+def mirrored_bin(j: int, bins: int, steps: int) -> int:
+    """The bin of a half spectrum (0..bins-1) that holds X_j, or its conjugate, for j in (-bins, steps)."""
+    if j < 0:
+        return -j
+    if j >= bins:
+        return steps - j
+    return j
+
+
+@wp.func
+def bin_value(
+    spectrum: wp.array2d(dtype=wp.vec2d),
+    r: int,
+    j: int,
+    bins: int,
+    steps: int,
+    decoupled_accel: int,
+    response: ResponseBin,
+    inv_mass: wp.float64,
+    state: wp.vec2d,
+) -> wp.vec2d:
+    """X_j of row r for any j in (-bins, steps), from a half spectrum of ``bins`` bins: Hermitian
+    symmetry ``X_{-j} = X_{N-j} = conj(X_j)`` gives the bins it lacks, and ``X_0 = 0`` removes the
+    mean. With ``decoupled_accel`` 1, the decoupled acceleration's Y_j (m/s^2) instead, from the
+    force's X_j, the ``response`` of bin ``mirrored_bin(j)`` and the final ``state`` (:class:`ResponseBin`)."""
+    k = mirrored_bin(j, bins, steps)
+    if k == 0:
+        return wp.vec2d()
+    x = spectrum[r, k]
+    if decoupled_accel == 1:
+        x = complex_mul(response.gain, -inv_mass * x) + state[0] * response.c_y + state[1] * response.c_v
+    if k != j:
+        x = wp.vec2d(x[0], -x[1])
+    return x
+
+
+@wp.func
+def welford(count: wp.float64, value: wp.float64, moments: wp.vec2d) -> wp.vec2d:
+    """(mean, M2) after adding the ``count``-th value."""
+    delta = value - moments[0]
+    mean = moments[0] + delta / count
+    return wp.vec2d(mean, moments[1] + delta * (value - mean))
+
+
+@wp.kernel
+def psd_moments(
+    force_spectrum: wp.array2d(dtype=wp.vec2d),
+    accel_spectrum: wp.array2d(dtype=wp.vec2d),
+    states: wp.array2d(dtype=wp.float64),
+    decoupled: int,
+    window: int,
+    steps: int,
+    psd_scale: wp.float64,
+    omega2: wp.float64,
+    dt: wp.float64,
+    inv_mass: wp.float64,
+    force_moments: wp.array(dtype=wp.vec2d),
+    accel_moments: wp.array(dtype=wp.vec2d),
+    not_finite: wp.array(dtype=wp.int32),
+):
+    """Per bin k, the mean and M2 (Welford, over the rows in order) of the two-sided PSDs
+    ``C(q_k) = psd_scale |B_k|^2`` of the force (N^2 m) and the acceleration ((m/s^2)^2 m),
+    ``psd_scale = dx / (2 pi N)`` for unnormalized spectra (section 6: ``L/(2 pi) |X/N|^2``).
+
+    The force's X_k comes from ``force_spectrum`` (its mean removed by X_0 = 0); the
+    acceleration's from ``accel_spectrum`` (coupled) or, when ``decoupled`` is 1, from the force's
+    by :func:`bin_value` with ``states[r, 4:6]`` the final states. ``window`` 1 applies
+    the Hann window as a three-bin stencil. A row with a non-finite PSD sets ``not_finite[r]``.
+    """
+    k = wp.tid()
+    rows = force_spectrum.shape[0]
+    bins = force_spectrum.shape[1]
+    centre = response_bin(k, steps, omega2, dt)
+    left = centre
+    right = centre
+    if window == 1:
+        left = response_bin(mirrored_bin(k - 1, bins, steps), steps, omega2, dt)
+        right = response_bin(mirrored_bin(k + 1, bins, steps), steps, omega2, dt)
+    force_stats = wp.vec2d()
+    accel_stats = wp.vec2d()
+    for r in range(rows):
+        b_force = bin_value(force_spectrum, r, k, bins, steps, 0, centre, inv_mass, wp.vec2d())
+        state = wp.vec2d(states[r, 4], states[r, 5])
+        if decoupled == 1:
+            b_accel = bin_value(force_spectrum, r, k, bins, steps, 1, centre, inv_mass, state)
+        else:
+            b_accel = bin_value(accel_spectrum, r, k, bins, steps, 0, centre, inv_mass, wp.vec2d())
+        if window == 1:
+            # the Hann window (0.5 - 0.5 cos(2 pi s / N)) / sqrt(3/8), of mean square 1, is a
+            # three-bin stencil: (X_k / 2 - X_{k-1} / 4 - X_{k+1} / 4) / sqrt(3/8)
+            if decoupled == 1:
+                a_sides = bin_value(force_spectrum, r, k - 1, bins, steps, 1, left, inv_mass, state) + bin_value(
+                    force_spectrum, r, k + 1, bins, steps, 1, right, inv_mass, state)
+            else:
+                a_sides = bin_value(accel_spectrum, r, k - 1, bins, steps, 0, left, inv_mass, wp.vec2d()) + bin_value(
+                    accel_spectrum, r, k + 1, bins, steps, 0, right, inv_mass, wp.vec2d())
+            f_sides = bin_value(force_spectrum, r, k - 1, bins, steps, 0, left, inv_mass, wp.vec2d()) + bin_value(
+                force_spectrum, r, k + 1, bins, steps, 0, right, inv_mass, wp.vec2d())
+            b_force = HANN_NORM * (wp.float64(0.5) * b_force - wp.float64(0.25) * f_sides)
+            b_accel = HANN_NORM * (wp.float64(0.5) * b_accel - wp.float64(0.25) * a_sides)
+        force_psd = psd_scale * wp.dot(b_force, b_force)
+        accel_psd = psd_scale * wp.dot(b_accel, b_accel)
+        if not (wp.isfinite(force_psd) and wp.isfinite(accel_psd)):
+            not_finite[r] = 1
+        count = wp.float64(r + 1)
+        force_stats = welford(count, force_psd, force_stats)
+        accel_stats = welford(count, accel_psd, accel_stats)
+    force_moments[k] = force_stats
+    accel_moments[k] = accel_stats
