@@ -91,7 +91,8 @@ class PreparedLines:
 
     ``lines`` is what the kernels index: the input itself (open) or a copy with ``first``
     wrapped springs on each side (periodic). The wheel of step s sits at spring ``first + s``
-    of ``lines``. ``bounds[r] = (min h, max h)`` of row r; ``prefix`` (R, n_work + 1) holds
+    of ``lines``. ``bounds[r] = (min h, max h)`` of row r (None for edge with a given h_max);
+    ``prefix`` (R, n_work + 1) holds
     ``S_j = sum_{i<j} h_i`` (eq 18) up to a constant per row; ``tree`` the implicit min/max tree.
     """
 
@@ -210,9 +211,12 @@ def prepare_lines(
 
     wp = warp()
     rows, n = lines.shape
-    bounds = _row_bounds(lines, device)
-    # the largest height of all rows: one host copy, for the default h_max and the direct/tree checks
-    h_top = float(bounds.numpy()[:, 1].max()) if h_max is None or algorithm in ("direct", "tree") else None
+    # the row bounds and the largest height of all rows (one host copy): for the default h_max
+    # and the direct/tree windows; edge needs neither
+    bounds = h_top = None
+    if h_max is None or algorithm in ("direct", "tree"):
+        bounds = _row_bounds(lines, device)
+        h_top = float(bounds.numpy()[:, 1].max())
     if h_max is None:
         h_max = h_top
     first, steps = step_range(params, boundary, d, h_max)

@@ -73,31 +73,40 @@ def rough_lines(params: Params, seed: int, realizations, device: str = "cpu"):
     lines : (R, n) float64, metres
         A NumPy array on the CPU; a Warp array (``.numpy()``, CuPy via ``cupy.asarray``) on CUDA.
     """
-    from ..kernels.lines import line_scales, random_phase_spectrum
+    device = resolve_device(device)
+    return irfft_rows(random_spectra(params, seed, realizations, device), params.n_points, device)
+
+
+def random_spectra(params: Params, seed: int, realizations, device: str):
+    """The (R, n/2 + 1) half spectra (``wp.vec2d``, on ``device``) whose inverse real FFTs are
+    the lines of :func:`rough_lines`, already scaled to RMS h0."""
+    from ..kernels.lines import line_scales, mode_amplitudes, random_phase_spectrum
 
     wp = warp()
-    device = resolve_device(device)
     seed = check_seed(seed)
     indices = realization_indices(realizations)
     n = params.n_points
     k_first, k_last = params.mode_range
     exponent = -(params.H + 0.5)
     nyquist = n // 2 if n % 2 == 0 and k_last == n // 2 else -1
+    bins = n // 2 + 1
+    amplitudes = wp.empty(bins, dtype=wp.float64, device=device)
+    wp.launch(mode_amplitudes, dim=bins, inputs=[k_first, k_last, exponent, amplitudes], device=device)
     rows = wp.array(indices, dtype=wp.int64, device=device)
     scales = wp.empty(indices.size, dtype=wp.float64, device=device)
     wp.launch(line_scales, dim=indices.size,
-              inputs=[rows, wp.uint64(seed), k_first, nyquist, exponent,
-                      _two_sum_below_nyquist(n, k_first, k_last, exponent), params.h0 * n, scales], device=device)
-    spectrum = wp.empty((indices.size, n // 2 + 1), dtype=wp.vec2d, device=device)
+              inputs=[rows, wp.uint64(seed), amplitudes, nyquist, _two_sum_below_nyquist(n, k_first, k_last, exponent),
+                      params.h0 * n, scales], device=device)
+    spectrum = wp.empty((indices.size, bins), dtype=wp.vec2d, device=device)
     wp.launch(random_phase_spectrum, dim=spectrum.shape,
-              inputs=[rows, wp.uint64(seed), k_first, k_last, nyquist, exponent, scales, spectrum], device=device)
-    return irfft_rows(spectrum, n, device)
+              inputs=[rows, wp.uint64(seed), amplitudes, nyquist, scales, spectrum], device=device)
+    return spectrum
 
 
 @functools.lru_cache(maxsize=16)
 def _two_sum_below_nyquist(n: int, k_first: int, k_last: int, exponent: float) -> float:
     """``2 sum a_k^2`` over the generated modes 0 < k < n/2, ``a_k = (k / k_first)^exponent``
-    (the kernels' :func:`mdroll.kernels.lines.mode_amplitude`): every line's share of Parseval's
+    (the kernels' :func:`mdroll.kernels.lines.mode_amplitudes`): every line's share of Parseval's
     sum that does not depend on its phases."""
     k = np.arange(k_first, min(k_last, (n - 1) // 2) + 1, dtype=np.float64)
     return float(2.0 * np.sum((k / k_first) ** (2.0 * exponent)))

@@ -365,7 +365,8 @@ def coupled_series(prepared, params: Params, algorithm: str, device: str, d_star
                 prepared.prefix if prepared.prefix is not None else empty_prefix,
                 prepared.tree if prepared.tree is not None else empty_tree,
                 prepared.level_offsets if prepared.level_offsets is not None else wp.zeros(1, dtype=wp.int32, device=device),
-                prepared.bounds, prepared.top_level, prepared.leaf_size, prepared.n_work, prepared.first, prepared.steps,
+                prepared.bounds if prepared.bounds is not None else wp.empty(1, dtype=wp.vec2d, device=device),
+                prepared.top_level, prepared.leaf_size, prepared.n_work, prepared.first, prepared.steps,
                 params.d0 if d_start is None else d_start, params.dx, params.R, params.E_star, params.F_N, 1.0 / params.m, params.dt, force, accel],
         device=device,
     )

@@ -58,7 +58,9 @@ def coupled_response(
     lanes = wp.block_dim()
     curvature = dx * dx / R
     k_spring = E_star * dx
-    h_max = bounds[r][1]
+    h_max = wp.float64(0.0)
+    if algorithm == DIRECT:
+        h_max = bounds[r][1]
     d = d_start
     v = wp.float64(0.0)
     for s in range(steps):

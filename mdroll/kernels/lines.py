@@ -38,20 +38,24 @@ def uniform_from_counter(seed: wp.uint64, realization: wp.int64, mode: int) -> w
     return wp.float64(z >> wp.uint64(11)) * wp.float64(1.1102230246251565e-16)
 
 
-@wp.func
-def mode_amplitude(k: int, k_first: int, exponent: wp.float64) -> wp.float64:
-    """``(k / k_first)^exponent``: with ``exponent = -(H + 1/2)`` the amplitude of mode k follows
-    ``sqrt(C_1D(q_k))``, ``C_1D ~ q^(-2H-1)`` (eq 33), up to the line's scale."""
-    return wp.pow(wp.float64(k) / wp.float64(k_first), exponent)
+@wp.kernel
+def mode_amplitudes(k_first: int, k_last: int, exponent: wp.float64, amplitudes: wp.array(dtype=wp.float64)):
+    """``a_k = (k / k_first)^exponent`` for k_first <= k <= k_last, else 0: with ``exponent =
+    -(H + 1/2)`` the amplitude of mode k follows ``sqrt(C_1D(q_k))``, ``C_1D ~ q^(-2H-1)`` (eq 33),
+    up to the line's scale. The same for every row, so computed once per batch."""
+    k = wp.tid()
+    a = wp.float64(0.0)
+    if k >= k_first and k <= k_last:
+        a = wp.pow(wp.float64(k) / wp.float64(k_first), exponent)
+    amplitudes[k] = a
 
 
 @wp.kernel
 def line_scales(
     realizations: wp.array(dtype=wp.int64),
     seed: wp.uint64,
-    k_first: int,
+    amplitudes: wp.array(dtype=wp.float64),
     nyquist: int,
-    exponent: wp.float64,
     two_sum_below_nyquist: wp.float64,
     target: wp.float64,
     scales: wp.array(dtype=wp.float64),
@@ -59,12 +63,12 @@ def line_scales(
     """The factor on each row's amplitudes that makes the line's RMS ``target / n`` (h0 for
     ``target = h0 n``), by Parseval before the inverse FFT instead of a pass over the line after:
     ``mean(h^2) = (scale / n)^2 (2 sum_{0 < k < n/2} a_k^2 + (a_{n/2} cos phi_{n/2})^2)``. Only the
-    Nyquist mode (``nyquist`` = n/2 when it is generated, else -1) is real, so only its share
+    Nyquist mode (``nyquist`` = n/2 when the line has one, else -1) is real, so only its share
     depends on the phase; ``two_sum_below_nyquist`` is the rest."""
     r = wp.tid()
     total = two_sum_below_nyquist
     if nyquist > 0:
-        a = mode_amplitude(nyquist, k_first, exponent) * wp.cos(TWO_PI * uniform_from_counter(seed, realizations[r], nyquist))
+        a = amplitudes[nyquist] * wp.cos(TWO_PI * uniform_from_counter(seed, realizations[r], nyquist))
         total += a * a
     scales[r] = target / wp.sqrt(total)
 
@@ -73,23 +77,21 @@ def line_scales(
 def random_phase_spectrum(
     realizations: wp.array(dtype=wp.int64),
     seed: wp.uint64,
-    k_first: int,
-    k_last: int,
+    amplitudes: wp.array(dtype=wp.float64),
     nyquist: int,
-    exponent: wp.float64,
     scales: wp.array(dtype=wp.float64),
     spectrum: wp.array2d(dtype=wp.vec2d),
 ):
-    """Half spectrum X_k (k = 0..n/2) of one rough line per row, for an inverse real FFT.
-
-    ``X_k = scales[r] a_k exp(i phi_k)`` (:func:`mode_amplitude`) for k_first <= k <= k_last,
-    else 0, with ``phi_k = 2 pi u(seed, realization, k)`` (eq 16-17). The Nyquist mode (k =
-    ``nyquist``) of a real line is real: ``X_{n/2} = scales[r] a_{n/2} cos(phi)``.
+    """Half spectrum X_k (k = 0..n/2) of one rough line per row, for an inverse real FFT:
+    ``X_k = scales[r] a_k exp(i phi_k)`` (a_k from :func:`mode_amplitudes`), with
+    ``phi_k = 2 pi u(seed, realization, k)`` (eq 16-17). The Nyquist mode (k = ``nyquist``) of a
+    real line is real: ``X_{n/2} = scales[r] a_{n/2} cos(phi)``.
     """
     r, k = wp.tid()
     value = wp.vec2d(wp.float64(0.0), wp.float64(0.0))
-    if k >= k_first and k <= k_last:
-        amplitude = scales[r] * mode_amplitude(k, k_first, exponent)
+    a = amplitudes[k]
+    if a != wp.float64(0.0):
+        amplitude = scales[r] * a
         phase = TWO_PI * uniform_from_counter(seed, realizations[r], k)
         value = wp.vec2d(amplitude * wp.cos(phase), amplitude * wp.sin(phase))
         if k == nyquist:

@@ -172,14 +172,6 @@ def bin_value(
     return x
 
 
-@wp.func
-def welford(count: wp.float64, value: wp.float64, moments: wp.vec2d) -> wp.vec2d:
-    """(mean, M2) after adding the ``count``-th value."""
-    delta = value - moments[0]
-    mean = moments[0] + delta / count
-    return wp.vec2d(mean, moments[1] + delta * (value - mean))
-
-
 @wp.kernel
 def psd_moments(
     force_spectrum: wp.array2d(dtype=wp.vec2d),
@@ -196,7 +188,7 @@ def psd_moments(
     accel_moments: wp.array(dtype=wp.vec2d),
     not_finite: wp.array(dtype=wp.int32),
 ):
-    """Per bin k, the mean and M2 (Welford, over the rows in order) of the two-sided PSDs
+    """Per bin k, the mean and M2 (sum of squared deviations) over the rows of the two-sided PSDs
     ``C(q_k) = psd_scale |B_k|^2`` of the force (N^2 m) and the acceleration ((m/s^2)^2 m),
     ``psd_scale = dx / (2 pi N)`` for unnormalized spectra (section 6: ``L/(2 pi) |X/N|^2``).
 
@@ -214,8 +206,11 @@ def psd_moments(
     if window == 1:
         left = response_bin(mirrored_bin(k - 1, bins, steps), steps, omega2, dt)
         right = response_bin(mirrored_bin(k + 1, bins, steps), steps, omega2, dt)
-    force_stats = wp.vec2d()
-    accel_stats = wp.vec2d()
+    # per bin, (force, accel) sums of deviations from the first row's PSDs: the mean and M2
+    # without a division per row, and exact where every row has the same PSD
+    shift = wp.vec2d()
+    sums = wp.vec2d()
+    squares = wp.vec2d()
     for r in range(rows):
         b_force = bin_value(force_spectrum, r, k, bins, steps, 0, centre, inv_mass, wp.vec2d())
         state = wp.vec2d(states[r, 4], states[r, 5])
@@ -236,12 +231,14 @@ def psd_moments(
                 force_spectrum, r, k + 1, bins, steps, 0, right, inv_mass, wp.vec2d())
             b_force = HANN_NORM * (wp.float64(0.5) * b_force - wp.float64(0.25) * f_sides)
             b_accel = HANN_NORM * (wp.float64(0.5) * b_accel - wp.float64(0.25) * a_sides)
-        force_psd = psd_scale * wp.dot(b_force, b_force)
-        accel_psd = psd_scale * wp.dot(b_accel, b_accel)
-        if not (wp.isfinite(force_psd) and wp.isfinite(accel_psd)):
+        psd = psd_scale * wp.vec2d(wp.dot(b_force, b_force), wp.dot(b_accel, b_accel))
+        if not (wp.isfinite(psd[0]) and wp.isfinite(psd[1])):
             not_finite[r] = 1
-        count = wp.float64(r + 1)
-        force_stats = welford(count, force_psd, force_stats)
-        accel_stats = welford(count, accel_psd, accel_stats)
-    force_moments[k] = force_stats
-    accel_moments[k] = accel_stats
+        if r == 0:
+            shift = psd
+        deviation = psd - shift
+        sums += deviation
+        squares += wp.cw_mul(deviation, deviation)
+    count = wp.float64(rows)
+    force_moments[k] = wp.vec2d(shift[0] + sums[0] / count, wp.max(squares[0] - sums[0] * sums[0] / count, wp.float64(0.0)))
+    accel_moments[k] = wp.vec2d(shift[1] + sums[1] / count, wp.max(squares[1] - sums[1] * sums[1] / count, wp.float64(0.0)))
