@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 import statistics
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -54,6 +54,8 @@ class StudySize:
     thesis: bool
     cpu_refinement: tuple | None = None
     cpu_distance: tuple | None = None
+    #: CUDA refinement realizations per algorithm where they differ from ``refinement``'s
+    cuda_refinement_realizations: dict = field(default_factory=dict)
 
     def sweeps(self, device: str) -> dict:
         """``{section: ([Params per size], realizations)}`` for ``device``."""
@@ -73,7 +75,10 @@ STUDIES = {
     "full": StudySize(repeats=5, refinement=(0.25, (17, 18, 19, 20, 21, 22), 64), distance=((16, 17, 18, 19, 20, 21, 22), 64),
                       ensemble=(18, (1, 4, 16, 64, 256, 1024)), compare=(18, 64), stages=Params(L=5.24288, n_real=300),
                       thesis=True, cpu_refinement=(0.25, (13, 14, 15, 16, 17, 18), 1),
-                      cpu_distance=((14, 15, 16, 17, 18, 19, 20, 21, 22), 1)),
+                      cpu_distance=((14, 15, 16, 17, 18, 19, 20, 21, 22), 1),
+                      # edge at 64 x 2^17 takes ~70 us, near the fixed cost of a launch and its
+                      # clock (n^0.79 measured): 256 lines keep every size well above it
+                      cuda_refinement_realizations={"edge": 256}),
 }
 #: Largest problem (realizations x points) per device and algorithm in a full study: on one CPU
 #: core direct takes ~1 us a step, tree ~0.05 us, edge ~0.02 us; on the GPU the direct sum under
@@ -177,9 +182,12 @@ def run_study(size: str = "quick", devices=None, progress=print) -> dict:
         for device in devices:
             sizes, reps = study.sweeps(device)[section]
             for algorithm in ALGORITHMS:
+                count = reps
+                if section == "refinement" and device.startswith("cuda"):
+                    count = study.cuda_refinement_realizations.get(algorithm, reps)
                 for p in sizes:
-                    if _allowed(device, algorithm, p.n_points, reps, full):
-                        record[section].append(force_time(p, algorithm, reps, device, study.repeats))
+                    if _allowed(device, algorithm, p.n_points, count, full):
+                        record[section].append(force_time(p, algorithm, count, device, study.repeats))
                 _fit(record, section, device, algorithm, progress)
             if section == "refinement":
                 for p in sizes:

@@ -120,8 +120,7 @@ class Params:
                 f"L = {self.L!r} m is not allowed: it must be at least 4a = {4.0 * self.a:.4g} m "
                 "(twice the contact width)"
             )
-        k = self._band_modes()
-        if k.size == 0:
+        if self._band_range() is None:
             raise ParameterError(
                 f"q_min = {self.q_min!r}, q_max = {self.q_max!r} rad/m hold no wavenumber q_k = 2 pi k / L "
                 f"of the grid (2 pi / L = {2 * math.pi / self.length:.6g} rad/m)"
@@ -183,12 +182,32 @@ class Params:
         """Number of springs in the smooth Hertz contact, 2 a / dx."""
         return 2.0 * self.a / self.dx
 
+    def _band_range(self) -> tuple[int, int] | None:
+        """First and last k in 1..n/2 with q_k = 2 pi k / length in the band (:meth:`in_band`), or
+        None: from the cutoffs by division, then settled with :meth:`in_band` itself, so a
+        wavenumber on a cutoff up to rounding counts as it does there; no array over the grid."""
+        dq = 2.0 * math.pi / self.length
+        top = self.n_points // 2
+
+        def inside(k: int) -> bool:
+            return 1 <= k <= top and bool(self.in_band(dq * k))
+
+        first = max(1, math.ceil(self.q_min * (1.0 - 1e-12) / dq))
+        while first > 1 and inside(first - 1):
+            first -= 1
+        while first <= top and not inside(first):
+            first += 1
+        last = min(top, math.floor(self.q_max * (1.0 + 1e-12) / dq))
+        while last < top and inside(last + 1):
+            last += 1
+        while last >= first and not inside(last):
+            last -= 1
+        return (first, last) if first <= last else None
+
     def _band_modes(self) -> np.ndarray:
         """Indices k >= 1 of the grid wavenumbers q_k = 2 pi k / length inside [q_min, q_max]."""
-        n = self.n_points
-        dq = 2.0 * math.pi / self.length
-        k = np.arange(1, n // 2 + 1, dtype=np.int64)
-        return k[self.in_band(dq * k)]
+        band = self._band_range()
+        return np.arange(band[0], band[1] + 1, dtype=np.int64) if band else np.zeros(0, dtype=np.int64)
 
     def in_band(self, q) -> np.ndarray:
         """Mask of ``q_min <= |q| <= q_max`` (inclusive, to a relative 1e-12 so that a grid
@@ -199,8 +218,7 @@ class Params:
     @property
     def mode_range(self) -> tuple[int, int]:
         """First and last index k (inclusive) of the generated modes q_k = 2 pi k / length."""
-        k = self._band_modes()
-        return int(k[0]), int(k[-1])
+        return self._band_range()
 
     @property
     def lambda_A(self) -> float:

@@ -66,3 +66,16 @@ def test_bad_values_name_the_parameter(name, value):
     message = str(info.value)
     assert message.split()[0].startswith(name) or f"{name} " in message, message
     assert isinstance(info.value, ValueError)
+
+
+@pytest.mark.parametrize("L", [0.05, 0.2, 5.24288])
+@pytest.mark.parametrize("q_min", [2 * math.pi / 0.005, 2 * math.pi / 0.0123, 100.0])
+@pytest.mark.parametrize("q_max_fraction", [None, 0.25, 0.999])
+def test_mode_range_is_the_band_of_the_grid(L, q_min, q_max_fraction):
+    """The generated modes (found without an array over the grid) against the mask of every q_k."""
+    p = Params(L=L, q_min=q_min)
+    if q_max_fraction:
+        p = p.replace(q_max=q_max_fraction * math.pi / p.dx)
+    k = np.arange(1, p.n_points // 2 + 1)
+    inside = k[p.in_band(2 * math.pi * k / p.length)]
+    assert p.mode_range == (inside[0], inside[-1])
