@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Sequence
 
 import numpy as np
@@ -92,21 +91,14 @@ def random_spectra(params: Params, seed: int, realizations, device: str):
     bins = n // 2 + 1
     amplitudes = wp.empty(bins, dtype=wp.float64, device=device)
     wp.launch(mode_amplitudes, dim=bins, inputs=[k_first, k_last, exponent, amplitudes], device=device)
+    # Parseval's sum of the very amplitudes the spectra use, kept on the device
+    sum_of_squares = wp.empty(1, dtype=wp.float64, device=device)
+    wp.utils.array_inner(amplitudes, amplitudes, out=sum_of_squares)
     rows = wp.array(indices, dtype=wp.int64, device=device)
     scales = wp.empty(indices.size, dtype=wp.float64, device=device)
     wp.launch(line_scales, dim=indices.size,
-              inputs=[rows, wp.uint64(seed), amplitudes, nyquist, _two_sum_below_nyquist(n, k_first, k_last, exponent),
-                      params.h0 * n, scales], device=device)
+              inputs=[rows, wp.uint64(seed), amplitudes, nyquist, sum_of_squares, params.h0 * n, scales], device=device)
     spectrum = wp.empty((indices.size, bins), dtype=wp.vec2d, device=device)
     wp.launch(random_phase_spectrum, dim=spectrum.shape,
               inputs=[rows, wp.uint64(seed), amplitudes, nyquist, scales, spectrum], device=device)
     return spectrum
-
-
-@functools.lru_cache(maxsize=16)
-def _two_sum_below_nyquist(n: int, k_first: int, k_last: int, exponent: float) -> float:
-    """``2 sum a_k^2`` over the generated modes 0 < k < n/2, ``a_k = (k / k_first)^exponent``
-    (the kernels' :func:`mdroll.kernels.lines.mode_amplitudes`): every line's share of Parseval's
-    sum that does not depend on its phases."""
-    k = np.arange(k_first, min(k_last, (n - 1) // 2) + 1, dtype=np.float64)
-    return float(2.0 * np.sum((k / k_first) ** (2.0 * exponent)))

@@ -14,8 +14,8 @@ from ..devices import resolve_device, synchronize, to_warp, warp
 from ..params import ParameterError, Params
 from .force import ALGORITHMS, BOUNDARIES, DEFAULT_LEAF_SIZE, check_choice, launch_force, prepare_lines
 from .lines import check_seed, realization_indices, rough_lines
-from .spectra import (LOST, NOT_FINITE, SUM_DEVIATION, SUM_SQUARES, RunningMoments, array_module,
-                      psd_moments_of_batch, series_sums, wavenumbers)
+from ..kernels.spectra import LOST, NOT_FINITE, SUM_DEVIATION, SUM_SQUARES
+from .spectra import RunningMoments, array_module, psd_moments_of_batch, series_sums, wavenumbers
 
 MODES = ("decoupled", "coupled")
 #: The open-boundary wheel range of an ensemble is set from d0 + H_BOUND_SIGMAS * h0, not from

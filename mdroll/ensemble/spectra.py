@@ -15,6 +15,7 @@ import numpy as np
 
 from ..devices import cupy_stream, cupy_view, is_cuda, warp
 from ..params import Params
+from ..kernels.spectra import SUM_COLUMNS
 from .fft import rfft_rows
 
 
@@ -82,12 +83,8 @@ def complex_rows(spectrum, device: str):
                     device="cpu", copy=False)
 
 
-#: Columns of :func:`series_sums`.
-SUM_DEVIATION, SUM_SQUARES, LOST, NOT_FINITE, FINAL_Y, FINAL_V = range(6)
-
-
 def series_sums(force, params: Params, device: str, decoupled: bool) -> np.ndarray:
-    """Per row of ``force`` (R, N; N), one pass over the series: the host (R, 6) array of
+    """Per row of ``force`` (R, N; N), one pass over the series: the host (R, SUM_COLUMNS) array of
     ``sum (F - F_N)`` (N), ``sum (F - F_N)^2`` (N^2), steps with F <= 0, non-finite steps and,
     when ``decoupled``, the state (y_N (m), y'_N (m/s)) after the last step of the decoupled
     wheel started at rest (section 5.1; zeros otherwise). Leaves ``F - F_N`` in ``force`` (a
@@ -103,11 +100,11 @@ def series_sums(force, params: Params, device: str, decoupled: bool) -> np.ndarr
         wp.launch(euler_impulse_response, dim=steps, inputs=[phi, params.dt, weights], device=device)
     else:
         weights = wp.empty(1, dtype=wp.vec2d, device=device)
-    partial = wp.empty((rows, threads, 6), dtype=wp.float64, device=device)
+    partial = wp.empty((rows, threads, SUM_COLUMNS), dtype=wp.float64, device=device)
     wp.launch(series_summary, dim=(rows, threads),
               inputs=[force, steps, threads, params.F_N, 1.0 / params.m, weights, int(decoupled), partial], device=device)
-    sums = wp.empty((rows, 6), dtype=wp.float64, device=device)
-    wp.launch(add_partials, dim=(rows, 6), inputs=[partial, threads, sums], device=device)
+    sums = wp.empty((rows, SUM_COLUMNS), dtype=wp.float64, device=device)
+    wp.launch(add_partials, dim=(rows, SUM_COLUMNS), inputs=[partial, threads, sums], device=device)
     return sums.numpy()
 
 

@@ -56,20 +56,22 @@ def line_scales(
     seed: wp.uint64,
     amplitudes: wp.array(dtype=wp.float64),
     nyquist: int,
-    two_sum_below_nyquist: wp.float64,
+    sum_of_squares: wp.array(dtype=wp.float64),
     target: wp.float64,
     scales: wp.array(dtype=wp.float64),
 ):
     """The factor on each row's amplitudes that makes the line's RMS ``target / n`` (h0 for
     ``target = h0 n``), by Parseval before the inverse FFT instead of a pass over the line after:
-    ``mean(h^2) = (scale / n)^2 (2 sum_{0 < k < n/2} a_k^2 + (a_{n/2} cos phi_{n/2})^2)``. Only the
-    Nyquist mode (``nyquist`` = n/2 when the line has one, else -1) is real, so only its share
-    depends on the phase; ``two_sum_below_nyquist`` is the rest."""
+    ``mean(h^2) = (scale / n)^2 (2 sum_{0 < k < n/2} a_k^2 + (a_{n/2} cos phi_{n/2})^2)``, with
+    ``sum_of_squares[0] = sum_k a_k^2`` over the whole half spectrum. Only the Nyquist mode
+    (``nyquist`` = n/2 when the line has one, else -1) is real, so only its share depends on
+    the phase."""
     r = wp.tid()
-    total = two_sum_below_nyquist
+    total = wp.float64(2.0) * sum_of_squares[0]
     if nyquist > 0:
-        a = amplitudes[nyquist] * wp.cos(TWO_PI * uniform_from_counter(seed, realizations[r], nyquist))
-        total += a * a
+        a_nyquist = amplitudes[nyquist]
+        a = a_nyquist * wp.cos(TWO_PI * uniform_from_counter(seed, realizations[r], nyquist))
+        total += a * a - wp.float64(2.0) * a_nyquist * a_nyquist
     scales[r] = target / wp.sqrt(total)
 
 

@@ -13,6 +13,14 @@ HANN_NORM = wp.constant(wp.float64(1.632993161855452))
 #: Threads sharing one series in :func:`series_summary` on CUDA; their partial sums are added
 #: in a fixed order, so the result does not depend on scheduling.
 SUMMARY_THREADS = 1024
+#: Columns of :func:`series_summary`'s sums, read by :func:`psd_moments` and the host.
+SUM_DEVIATION = wp.constant(0)
+SUM_SQUARES = wp.constant(1)
+LOST = wp.constant(2)
+NOT_FINITE = wp.constant(3)
+FINAL_Y = wp.constant(4)
+FINAL_V = wp.constant(5)
+SUM_COLUMNS = 6
 
 
 @wp.func
@@ -87,12 +95,12 @@ def series_summary(
                 lost += wp.float64(1.0)
             if with_state == 1:
                 state += deviation * weights[steps - 1 - s]
-    partial[r, t, 0] = total
-    partial[r, t, 1] = squares
-    partial[r, t, 2] = lost
-    partial[r, t, 3] = bad
-    partial[r, t, 4] = -inv_mass * state[0]
-    partial[r, t, 5] = -inv_mass * state[1]
+    partial[r, t, SUM_DEVIATION] = total
+    partial[r, t, SUM_SQUARES] = squares
+    partial[r, t, LOST] = lost
+    partial[r, t, NOT_FINITE] = bad
+    partial[r, t, FINAL_Y] = -inv_mass * state[0]
+    partial[r, t, FINAL_V] = -inv_mass * state[1]
 
 
 @wp.kernel
@@ -194,8 +202,9 @@ def psd_moments(
 
     The force's X_k comes from ``force_spectrum`` (its mean removed by X_0 = 0); the
     acceleration's from ``accel_spectrum`` (coupled) or, when ``decoupled`` is 1, from the force's
-    by :func:`bin_value` with ``states[r, 4:6]`` the final states. ``window`` 1 applies
-    the Hann window as a three-bin stencil. A row with a non-finite PSD sets ``not_finite[r]``.
+    by :func:`bin_value` with ``states[r, FINAL_Y]``, ``states[r, FINAL_V]`` the final states
+    (:func:`series_summary`). ``window`` 1 applies the Hann window as a three-bin stencil. A row
+    with a non-finite PSD sets ``not_finite[r]``.
     """
     k = wp.tid()
     rows = force_spectrum.shape[0]
@@ -213,7 +222,7 @@ def psd_moments(
     squares = wp.vec2d()
     for r in range(rows):
         b_force = bin_value(force_spectrum, r, k, bins, steps, 0, centre, inv_mass, wp.vec2d())
-        state = wp.vec2d(states[r, 4], states[r, 5])
+        state = wp.vec2d(states[r, FINAL_Y], states[r, FINAL_V])
         if decoupled == 1:
             b_accel = bin_value(force_spectrum, r, k, bins, steps, 1, centre, inv_mass, state)
         else:
