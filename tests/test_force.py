@@ -235,3 +235,21 @@ def test_window_beyond_the_exact_closed_forms_is_refused(algorithm):
     with pytest.raises(ParameterError, match=rf"dx = .* too fine for the {algorithm} kernel"):
         contact_force(lines, p, algorithm)
     assert contact_force(lines, p, "edge").shape[0] == 1
+
+
+@pytest.mark.parametrize("boundary", ["open", "periodic"])
+def test_prepared_bounds_and_prefix_sums_against_numpy(device, boundary):
+    """Row bounds (coalesced partials on CUDA) equal numpy's min and max; the prefix sums, one
+    scan over the batch read as overlapping rows, give numpy's row-wise cumulative sums as
+    differences S_j - S_0 (eq 18)."""
+    from mdroll.ensemble.force import prepare_lines
+
+    p = SMALL
+    lines = _lines(p, 4, 3, device)
+    prepared = prepare_lines(lines, p, "tree", boundary, p.d0, device)
+    host, work = to_numpy(lines), to_numpy(prepared.lines)
+    np.testing.assert_array_equal(to_numpy(prepared.bounds), np.stack([host.min(axis=1), host.max(axis=1)], axis=1))
+    prefix = to_numpy(prepared.prefix)
+    assert prefix.shape == (work.shape[0], work.shape[1] + 1)
+    expected = np.concatenate([np.zeros((work.shape[0], 1)), np.cumsum(work, axis=1)], axis=1)
+    assert np.max(np.abs((prefix - prefix[:, :1]) - expected)) <= 1e-12 * p.h0 * np.sqrt(work.shape[1])
