@@ -51,7 +51,7 @@ def main() -> None:
         lines = clock("generate", lambda: to_warp(rough_lines(p, 0, idx, device=device), device))
         prepared = clock("build", lambda: prepare_lines(lines, p, args.algorithm, "open", p.d0, device,
                                                         h_max=H_BOUND_SIGMAS * p.h0))
-        force = clock("force", lambda: launch_force(prepared, p, args.algorithm, p.d0, device))
+        force = clock("force", lambda: launch_force(prepared, p, args.algorithm, p.d0, device, offset=p.F_N))
         sums = clock("response (force sums, final state)", lambda: series_sums(force, p, device, True))
         clock("rfft", lambda: rfft_rows(force, device))
         moments = clock("spectra (rfft, PSD moments)", lambda: psd_moments_of_batch(force, None, sums, p, device))

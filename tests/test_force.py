@@ -253,3 +253,17 @@ def test_prepared_bounds_and_prefix_sums_against_numpy(device, boundary):
     assert prefix.shape == (work.shape[0], work.shape[1] + 1)
     expected = np.concatenate([np.zeros((work.shape[0], 1)), np.cumsum(work, axis=1)], axis=1)
     assert np.max(np.abs((prefix - prefix[:, :1]) - expected)) <= 1e-12 * p.h0 * np.sqrt(work.shape[1])
+
+
+@pytest.mark.parametrize("algorithm", ["tree", "direct", "edge"])
+def test_force_offset_is_subtracted_in_the_kernel(device, algorithm):
+    """``launch_force(offset=F_N)`` writes F - F_N (the pipeline's series) to within the one
+    rounding of the subtraction (a fused multiply-add may round k u - F_N once instead of twice)."""
+    from mdroll.ensemble.force import launch_force, prepare_lines
+
+    p = SMALL
+    prepared = prepare_lines(_lines(p, 8, 3, device), p, algorithm, "open", p.d0, device)
+    plain = to_numpy(launch_force(prepared, p, algorithm, p.d0, device))
+    shifted = to_numpy(launch_force(prepared, p, algorithm, p.d0, device, offset=p.F_N))
+    assert np.ptp(plain) > 1.0  # a rough line: the deviations are not all alike
+    assert np.max(np.abs(shifted - (plain - p.F_N))) <= 2.0**-52 * p.F_N

@@ -212,6 +212,67 @@ def test_cli_config_file_and_existing_output(tmp_path):
     assert proc.returncode == 2 and "--force" in proc.stderr
 
 
+def test_series_sums_against_numpy_and_a_sequential_loop(device):
+    """The read-only pass over u = F - F_N: its sums against numpy, contact lost where F <= 0,
+    non-finite steps counted, and the decoupled wheel's final state (section 5.1) against a
+    plain semi-implicit Euler loop from rest; zeros for the state when not decoupled."""
+    from mdroll.devices import to_warp
+    from mdroll.ensemble.spectra import series_sums
+    from mdroll.kernels.spectra import FINAL_V, FINAL_Y, LOST, NOT_FINITE, SUM_DEVIATION, SUM_SQUARES
+
+    p = Params(L=0.05)
+    rng = np.random.default_rng(7)
+    force = p.F_N + 50.0 * rng.standard_normal((3, 3000))
+    force[1, 100:110] = 0.0  # contact lost
+    force[1, 200] = -3.0  # the edge formula can go below zero
+    force[2, 5] = np.nan
+    u = force - p.F_N
+    sums = series_sums(to_warp(u, device), p, device, decoupled=True)
+    assert sums[:, LOST].tolist() == [0, 11, 0] and sums[:, NOT_FINITE].tolist() == [0, 0, 1]
+    for r in (0, 1):
+        scale = np.abs(u[r]).sum()
+        assert abs(sums[r, SUM_DEVIATION] - u[r].sum()) <= 1e-14 * scale
+        assert sums[r, SUM_SQUARES] == pytest.approx(np.sum(u[r] ** 2), rel=1e-13)
+        y = v = 0.0
+        for s in range(u.shape[1]):
+            v += p.dt * (-u[r, s] - p.k_contact * y) / p.m
+            y += p.dt * v
+        assert sums[r, FINAL_Y] == pytest.approx(y, rel=1e-9)
+        assert sums[r, FINAL_V] == pytest.approx(v, rel=1e-9)
+    coupled = series_sums(to_warp(u, device), p, device, decoupled=False)
+    assert np.all(coupled[:, FINAL_Y:] == 0.0)
+    np.testing.assert_array_equal(coupled[:, :FINAL_Y], sums[:, :FINAL_Y])
+
+
+def test_resumed_run_continues_on_the_device(device, tmp_path, monkeypatch):
+    """A run stopped after its first batch, resumed from its checkpoint (moments saved on the
+    host), equals the uninterrupted run on the same device."""
+    from mdroll.ensemble import pipeline
+
+    class Stop(Exception):
+        pass
+
+    full = run_ensemble(P, seed=6, device=device, progress=False, batch=2)
+    original = pipeline.psd_moments_of_batch
+    calls = []
+
+    def stop_at_the_second_batch(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise Stop
+        return original(*args, **kwargs)
+
+    checkpoint = tmp_path / "checkpoint.npz"
+    monkeypatch.setattr(pipeline, "psd_moments_of_batch", stop_at_the_second_batch)
+    with pytest.raises(Stop):
+        run_ensemble(P, seed=6, device=device, progress=False, batch=2, checkpoint=checkpoint)
+    monkeypatch.setattr(pipeline, "psd_moments_of_batch", original)
+    resumed = run_ensemble(P, seed=6, device=device, progress=False, batch=2, checkpoint=checkpoint, resume=True)
+    for name in ("force_psd", "force_psd_stderr", "accel_psd", "accel_psd_stderr"):
+        np.testing.assert_allclose(getattr(resumed, name), getattr(full, name), rtol=1e-12)
+    np.testing.assert_array_equal(resumed.q, full.q)
+
+
 def test_impulse_response_is_the_euler_step_repeated(device):
     """Closed-form A^m b (Cayley-Hamilton, kernels/spectra.py) against the semi-implicit Euler
     step applied m times to a unit input (section 5.1), for m up to 2e5 (a phase of ~15 rad)."""

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..devices import cupy_stream, cupy_view, device_of, is_cuda, resolve_device, to_warp, warp
+from ..devices import device_of, is_cuda, resolve_device, to_warp, warp
 from ..kernels.common import MAX_CLOSED_FORM_OFFSET
 from ..params import ParameterError, Params
 from .fft import fast_length
@@ -128,29 +128,22 @@ def _prefix_sums(lines, device):
     """``S[r, j] - S[r, 0] = sum_{i<j} h[r, i]`` for j = 0..n (eq 18), as a (R, n + 1) Warp view,
     and the flat array that owns its memory.
 
-    One scan over the whole batch laid end to end (CUB's device scan through ``cupy.cumsum`` on
-    CUDA, NumPy's on the CPU): 3.0 ms at 300 x 2^20 on an H200, against 8.2 ms row by row
-    (benchmarks/results/build_probe_H200.json). Row r is the view of the flat prefix from
-    element r n, rows overlapping by one element, so S[r, 0] is the sum of the rows before it:
-    every kernel reads differences S_j - S_i only, and each line's mean is zero, so that offset
-    stays near rounding size (a wrapped periodic copy's few extra springs add ~1e-5 m a row).
+    One inclusive scan over the whole batch laid end to end, out of place (Warp's
+    ``array_scan``: CUB's device scan on CUDA, a sequential loop on the CPU): 1.5 ms at
+    300 x 2^20 on an H200, against 3.0 ms for ``cupy.cumsum`` into an output (a copy, then the
+    scan in place) and 8.2 ms row by row (benchmarks/results/host_probe_H200.json,
+    build_probe_H200.json). Row r is the view of the flat prefix from element r n, rows
+    overlapping by one element, so S[r, 0] is the sum of the rows before it: every kernel reads
+    differences S_j - S_i only, and each line's mean is zero, so that offset stays near rounding
+    size (a wrapped periodic copy's few extra springs add ~1e-5 m a row).
     """
     wp = warp()
+    lines = to_warp(lines, device)
     rows, n = lines.shape
-    if is_cuda(device):
-        import cupy
-
-        with cupy_stream(device):
-            flat = cupy.empty(rows * n + 1)
-            flat[0] = 0.0
-            cupy.cumsum(cupy_view(lines).ravel(), out=flat[1:])
-        pointer = flat.data.ptr
-    else:
-        flat = np.empty(rows * n + 1)
-        flat[0] = 0.0
-        np.cumsum(np.asarray(lines.numpy() if hasattr(lines, "numpy") else lines).ravel(), out=flat[1:])
-        pointer = flat.ctypes.data
-    prefix = wp.array(ptr=pointer, dtype=wp.float64, shape=(rows, n + 1), strides=(8 * n, 8), device=device)
+    flat = wp.empty(rows * n + 1, dtype=wp.float64, device=device)
+    flat[:1].zero_()
+    wp.utils.array_scan((lines if lines.is_contiguous else lines.contiguous()).flatten(), flat[1:], inclusive=True)
+    prefix = wp.array(ptr=flat.ptr, dtype=wp.float64, shape=(rows, n + 1), strides=(8 * n, 8), device=device)
     return prefix, flat
 
 
@@ -270,11 +263,25 @@ def lift_table(params: Params, d: float, h_top: float) -> tuple[np.ndarray, int]
     return d - curvature * m * m, reach_out
 
 
-def launch_force(prepared: PreparedLines, params: Params, algorithm: str, d: float, device: str, out=None):
-    """The (R, steps) force array (N, Warp float64 on ``device``) at constant indentation d (m).
+def launch_force(prepared: PreparedLines, params: Params, algorithm: str, d: float, device: str, out=None,
+                 offset: float = 0.0):
+    """The (R, steps) array of ``F - offset`` (N, Warp float64 on ``device``): the force at
+    constant indentation d (m), less ``offset`` (N; the pipeline passes F_N, so the series
+    holds the small deviation that the spectra need).
 
     ``out``: a preallocated (R, steps) float64 array to write into.
     """
+    command, force = force_command(prepared, params, algorithm, d, device, out, offset)
+    command.launch()
+    return force
+
+
+def force_command(prepared: PreparedLines, params: Params, algorithm: str, d: float, device: str, out=None,
+                  offset: float = 0.0):
+    """The force launch of :func:`launch_force`, recorded (a ``wp.Launch``; run it with
+    ``.launch()``), and the array it writes: the host work of a launch (the lift table's upload,
+    the arguments' packing; ~0.2 ms for the tree) is done here once, so that the scaling study
+    can time the kernel alone."""
     from ..kernels.common import BLOCK
     from ..kernels.direct import contact_force_direct
     from ..kernels.edge import contact_force_edge
@@ -291,18 +298,18 @@ def launch_force(prepared: PreparedLines, params: Params, algorithm: str, d: flo
         table, origin = lift_table(params, d, p.h_top)
         lifts = wp.array(table, dtype=wp.float64, device=device)
     if algorithm == "direct":
-        inputs = [p.lines, p.bounds, lifts, origin, p.n_work, p.first, p.steps, d, curvature, params.k_spring, force]
+        inputs = [p.lines, p.bounds, lifts, origin, p.n_work, p.first, p.steps, d, curvature, params.k_spring, offset,
+                  force]
         kernel = contact_force_direct
     elif algorithm == "tree":
         inputs = [p.lines, p.prefix, p.tree, p.level_offsets, lifts, origin, p.top_level, p.leaf_size, p.band_limit,
-                  p.n_work, p.first, p.steps, d, curvature, params.k_spring, force]
+                  p.n_work, p.first, p.steps, d, curvature, params.k_spring, offset, force]
         kernel = contact_force_tree
     else:
-        inputs = [p.prefix, p.first, edge_geometry(params, d), force]
+        inputs = [p.prefix, p.first, edge_geometry(params, d), offset, force]
         kernel = contact_force_edge
         dim = force.shape
-    wp.launch(kernel, dim=dim, inputs=inputs, device=device)
-    return force
+    return wp.launch(kernel, dim=dim, inputs=inputs, device=device, record_cmd=True), force
 
 
 def contact_force(

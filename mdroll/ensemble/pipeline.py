@@ -15,7 +15,7 @@ from ..params import ParameterError, Params
 from .force import ALGORITHMS, BOUNDARIES, DEFAULT_LEAF_SIZE, check_choice, launch_force, prepare_lines
 from .lines import check_seed, realization_indices, rough_lines
 from ..kernels.spectra import LOST, NOT_FINITE, SUM_DEVIATION, SUM_SQUARES
-from .spectra import RunningMoments, array_module, psd_moments_of_batch, series_sums, wavenumbers
+from .spectra import RunningMoments, array_module, psd_moments_of_batch, series_sums, to_host, wavenumbers
 
 MODES = ("decoupled", "coupled")
 #: The open-boundary wheel range of an ensemble is set from d0 + H_BOUND_SIGMAS * h0, not from
@@ -269,10 +269,11 @@ def run_ensemble(
         totals.steps = prepared.steps
         decoupled = mode == "decoupled"
         if decoupled:
-            force = stage("force", lambda: launch_force(prepared, params, algorithm, d0, device))
+            force = stage("force", lambda: launch_force(prepared, params, algorithm, d0, device, offset=params.F_N))
             accel = None
         else:
-            force, accel = stage("response", lambda: coupled_series(prepared, params, algorithm, device))
+            force, accel = stage("response", lambda: coupled_series(prepared, params, algorithm, device,
+                                                                    force_offset=params.F_N))
         sums = stage("response", lambda: series_sums(force, params, device, decoupled))
         _raise_on_rows(sums[:, NOT_FINITE] > 0, "force", "force" if decoupled else "response", idx)
         force_moments, accel_moments, psd_not_finite = stage(
@@ -285,13 +286,11 @@ def run_ensemble(
         del lines, prepared, force, accel
     bar.close()
 
-    q = wavenumbers(totals.steps, params.dx)
+    q, omega, force_psd, force_psd_stderr, accel_psd, accel_psd_stderr = totals.spectra_on_host(params)
     n = len(indices)
     return EnsembleResult(
-        q=q, omega=q * params.v0,
-        force_psd=totals.force.mean, force_psd_stderr=totals.force.stderr,
-        accel_psd=totals.accel.mean, accel_psd_stderr=totals.accel.stderr,
-        n_real=n, params=params, seed=seed, algorithm=algorithm, mode=mode, boundary=boundary,
+        q=q, omega=omega, force_psd=force_psd, force_psd_stderr=force_psd_stderr, accel_psd=accel_psd,
+        accel_psd_stderr=accel_psd_stderr, n_real=n, params=params, seed=seed, algorithm=algorithm, mode=mode, boundary=boundary,
         device=device, steps=totals.steps, force_mean=totals.force_mean_sum / n, force_rms=totals.force_rms_sum / n,
         contact_lost_steps=totals.lost, timings=timings, batch=int(batch), realizations=indices.tolist(),
     )
@@ -314,10 +313,13 @@ class _Totals:
     def add(self, rows: int, force_moments, accel_moments, sums: np.ndarray, F_N: float) -> None:
         """Merge a batch of ``rows`` realizations: PSD moments from :func:`psd_moments_of_batch`,
         force sums from :func:`series_sums` (deviations from ``F_N``, N)."""
+        xp = array_module(force_moments)
         if self.force is None:
-            xp = array_module(force_moments)
             bins = force_moments.shape[0]
             self.force, self.accel = RunningMoments(bins, xp), RunningMoments(bins, xp)
+        else:  # a resumed run's moments come from the host: continue where the batches are
+            self.force.move_to(xp)
+            self.accel.move_to(xp)
         self.force.add_moments(rows, force_moments)
         self.accel.add_moments(rows, accel_moments)
         mean_deviation = sums[:, SUM_DEVIATION] / self.steps
@@ -326,6 +328,18 @@ class _Totals:
         self.force_rms_sum += float(np.sum(np.sqrt(variance)))
         self.lost += int(sums[:, LOST].sum())
         self.done += rows
+
+    def spectra_on_host(self, params: Params) -> tuple[np.ndarray, ...]:
+        """``(q, omega, force mean, its stderr, accel mean, its stderr)`` per bin (rad/m, rad/s,
+        N^2 m, N^2 m, (m/s^2)^2 m, (m/s^2)^2 m), computed where the moments live and brought to
+        the host in one copy (six separate copies and host arithmetic on 5e5 bins took ~10 ms
+        of a 30 ms thesis-scale run on an H200; benchmarks/results/host_probe_H200.json)."""
+        force_mean, force_stderr = self.force.mean_and_stderr()
+        accel_mean, accel_stderr = self.accel.mean_and_stderr()
+        xp = array_module(force_mean)
+        q = wavenumbers(self.steps, params.dx, xp)
+        rows = to_host(xp.stack([q, q * params.v0, force_mean, force_stderr, accel_mean, accel_stderr]))
+        return tuple(rows)
 
     def save(self, path, key: dict) -> None:
         """Write the totals and the run's identity ``key`` to ``path`` atomically."""
@@ -372,9 +386,11 @@ def _short(value) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
-def coupled_series(prepared, params: Params, algorithm: str, device: str, d_start: float | None = None):
-    """Force (N) and acceleration d'' (m/s^2) series of eq 13 for prepared lines; the wheel
-    starts at indentation ``d_start`` (default d0) at rest. Contact is lost where F = 0."""
+def coupled_series(prepared, params: Params, algorithm: str, device: str, d_start: float | None = None,
+                   force_offset: float = 0.0):
+    """Force (N, less ``force_offset``) and acceleration d'' (m/s^2) series of eq 13 for
+    prepared lines; the wheel starts at indentation ``d_start`` (default d0) at rest. Contact is
+    lost where F = 0."""
     from ..kernels.dynamics import COUPLED_LANES, DIRECT, EDGE, TREE, coupled_response
 
     wp = warp()
@@ -394,7 +410,7 @@ def coupled_series(prepared, params: Params, algorithm: str, device: str, d_star
                 prepared.level_offsets if prepared.level_offsets is not None else wp.zeros(1, dtype=wp.int32, device=device),
                 prepared.bounds if prepared.bounds is not None else wp.empty(1, dtype=wp.vec2d, device=device),
                 prepared.top_level, prepared.leaf_size, prepared.n_work, prepared.first, prepared.steps,
-                params.d0 if d_start is None else d_start, params.dx, params.R, params.E_star, params.F_N, 1.0 / params.m, params.dt, force, accel],
+                params.d0 if d_start is None else d_start, params.dx, params.R, params.E_star, params.F_N, 1.0 / params.m, params.dt, force_offset, force, accel],
         device=device,
     )
     return force, accel

@@ -19,9 +19,9 @@ from ..kernels.spectra import SUM_COLUMNS
 from .fft import rfft_rows
 
 
-def wavenumbers(steps: int, dx: float) -> np.ndarray:
-    """``q_k = 2 pi k / (N dx)`` (rad/m) for k = 0..N/2."""
-    return 2.0 * math.pi * np.arange(steps // 2 + 1) / (steps * dx)
+def wavenumbers(steps: int, dx: float, xp=np):
+    """``q_k = 2 pi k / (N dx)`` (rad/m) for k = 0..N/2, as a NumPy (default) or CuPy (``xp``) array."""
+    return 2.0 * math.pi * xp.arange(steps // 2 + 1) / (steps * dx)
 
 
 def _hann(steps: int, xp):
@@ -83,16 +83,16 @@ def complex_rows(spectrum, device: str):
                     device="cpu", copy=False)
 
 
-def series_sums(force, params: Params, device: str, decoupled: bool) -> np.ndarray:
-    """Per row of ``force`` (R, N; N), one pass over the series: the host (R, SUM_COLUMNS) array of
-    ``sum (F - F_N)`` (N), ``sum (F - F_N)^2`` (N^2), steps with F <= 0, non-finite steps and,
-    when ``decoupled``, the state (y_N (m), y'_N (m/s)) after the last step of the decoupled
-    wheel started at rest (section 5.1; zeros otherwise). Leaves ``F - F_N`` in ``force`` (a
-    finite row's spectrum is then free of the mean's rounding; :func:`series_summary`)."""
+def series_sums(deviation, params: Params, device: str, decoupled: bool) -> np.ndarray:
+    """Per row of ``deviation`` (R, N; the force less F_N, ``u = F - F_N``, N), one pass that
+    only reads: the host (R, SUM_COLUMNS) array of ``sum u`` (N), ``sum u^2`` (N^2), steps with
+    contact lost (F <= 0), non-finite steps and, when ``decoupled``, the state (y_N (m),
+    y'_N (m/s)) after the last step of the decoupled wheel started at rest (section 5.1; zeros
+    otherwise). See :func:`mdroll.kernels.spectra.series_summary`."""
     from ..kernels.spectra import SUMMARY_THREADS, add_partials, euler_impulse_response, series_summary
 
     wp = warp()
-    rows, steps = force.shape
+    rows, steps = deviation.shape
     threads = SUMMARY_THREADS if is_cuda(device) else 1
     if decoupled:
         weights = wp.empty(steps, dtype=wp.vec2d, device=device)
@@ -102,7 +102,7 @@ def series_sums(force, params: Params, device: str, decoupled: bool) -> np.ndarr
         weights = wp.empty(1, dtype=wp.vec2d, device=device)
     partial = wp.empty((rows, threads, SUM_COLUMNS), dtype=wp.float64, device=device)
     wp.launch(series_summary, dim=(rows, threads),
-              inputs=[force, steps, threads, params.F_N, 1.0 / params.m, weights, int(decoupled), partial], device=device)
+              inputs=[deviation, steps, threads, params.F_N, 1.0 / params.m, weights, int(decoupled), partial], device=device)
     sums = wp.empty((rows, SUM_COLUMNS), dtype=wp.float64, device=device)
     wp.launch(add_partials, dim=(rows, SUM_COLUMNS), inputs=[partial, threads, sums], device=device)
     return sums.numpy()
@@ -162,6 +162,11 @@ class RunningMoments:
     def m2(self) -> np.ndarray:
         return to_host(self._m2)
 
+    def move_to(self, xp) -> None:
+        """Keep the moments in ``xp``'s memory (``numpy`` or ``cupy``) from now on."""
+        if array_module(self._mean) is not xp:
+            self._mean, self._m2 = xp.asarray(to_host(self._mean)), xp.asarray(to_host(self._m2))
+
     def add(self, rows) -> None:
         """Merge a batch of rows (realizations x bins)."""
         mean_b = rows.mean(axis=0)
@@ -186,6 +191,11 @@ class RunningMoments:
     @property
     def stderr(self) -> np.ndarray:
         """Standard error of the mean per bin (0 with fewer than two samples)."""
+        return to_host(self.mean_and_stderr()[1])
+
+    def mean_and_stderr(self):
+        """The per-bin mean and its standard error where the moments live (NumPy or CuPy)."""
+        xp = array_module(self._mean)
         if self.count < 2:
-            return np.zeros_like(self.mean)
-        return np.sqrt(self.m2 / (self.count - 1) / self.count)
+            return self._mean, xp.zeros_like(self._mean)
+        return self._mean, xp.sqrt(self._m2 / (self.count - 1) / self.count)

@@ -45,9 +45,11 @@ def contact_force_direct(
     d: wp.float64,
     curvature: wp.float64,
     k_spring: wp.float64,
+    offset: wp.float64,
     force: wp.array2d(dtype=wp.float64),
 ):
-    """``force[r, s]`` (N): wheel at spring ``first + s`` of row r, indentation d (m); eq 11-12.
+    """``force[r, s] = F - offset`` (N): F with the wheel at spring ``first + s`` of row r,
+    indentation d (m); eq 11-12.
 
     Launched over ``(R, ceil(steps / 8))``; thread t computes steps 8t .. 8t+7. Offsets run in
     whole blocks of 8 from ``-window``; the few past ``+window`` add exactly nothing (there
@@ -64,9 +66,9 @@ def contact_force_direct(
         # every spring the 8 steps read lies on the line: no checks in the inner loops
         acc = blocked_spring_sum(h[r], c, -window, blocks, lifts, lift_origin, d, curvature, block_values())
         for j in range(BLOCK):
-            force[r, base + j] = k_spring * acc[j]
+            force[r, base + j] = k_spring * acc[j] - offset
     else:
         for j in range(BLOCK):
             s = base + j
             if s < steps:
-                force[r, s] = k_spring * force_direct(h, r, n, first + s, d, h_max, curvature, 0, 1)
+                force[r, s] = k_spring * force_direct(h, r, n, first + s, d, h_max, curvature, 0, 1) - offset

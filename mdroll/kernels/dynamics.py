@@ -42,6 +42,7 @@ def coupled_response(
     F_N: wp.float64,
     inv_mass: wp.float64,
     dt: wp.float64,
+    force_offset: wp.float64,
     force: wp.array2d(dtype=wp.float64),
     accel: wp.array2d(dtype=wp.float64),
 ):
@@ -52,7 +53,8 @@ def coupled_response(
     spring of the window; TREE: its slice of each band), a block-wide sum combines them, and
     every lane advances the same (d, d') with the same arithmetic. EDGE (eq 49 with
     a(d) = sqrt(d R) and the Hertz force at d) is O(1) per step and runs on lane 0. Writes
-    ``force`` (N) and ``accel = d''`` (m/s^2); steps without contact are those with F = 0.
+    ``force = F - force_offset`` (N) and ``accel = d''`` (m/s^2); steps without contact are
+    those with F = 0.
     """
     r, lane = wp.tid()
     lanes = wp.block_dim()
@@ -77,7 +79,7 @@ def coupled_response(
         F = wp.tile_sum(wp.tile(part))[0]
         a = (F_N - F) * inv_mass
         if lane == 0:
-            force[r, s] = F
+            force[r, s] = F - force_offset
             accel[r, s] = a
         v += dt * a
         d += dt * v

@@ -77,8 +77,9 @@ def contact_force_edge(
     prefix: wp.array2d(dtype=wp.float64),
     first: int,
     geometry: EdgeGeometry,
+    offset: wp.float64,
     force: wp.array2d(dtype=wp.float64),
 ):
-    """``force[r, s]`` (N) by eq 49 with the wheel at spring ``first + s`` of row r."""
+    """``force[r, s] = F - offset`` (N): F by eq 49 with the wheel at spring ``first + s`` of row r."""
     r, s = wp.tid()
-    force[r, s] = force_edge(prefix, r, first + s, geometry)
+    force[r, s] = force_edge(prefix, r, first + s, geometry) - offset

@@ -321,9 +321,11 @@ def contact_force_tree(
     d: wp.float64,
     curvature: wp.float64,
     k_spring: wp.float64,
+    offset: wp.float64,
     force: wp.array2d(dtype=wp.float64),
 ):
-    """``force[r, s]`` (N): wheel at spring ``first + s`` of row r, indentation d (m).
+    """``force[r, s] = F - offset`` (N): F with the wheel at spring ``first + s`` of row r,
+    indentation d (m).
 
     Launched over ``(R, ceil(steps / 8))``; thread t computes steps 8t .. 8t+7. Bands of at
     most ``band_limit`` springs are summed directly (register-blocked), wider ones descend the
@@ -373,11 +375,11 @@ def contact_force_tree(
             acc = blocked_spring_sum(row, c, -core_left - left_blocks * BLOCK, left_blocks, lifts, lift_origin, d,
                                      curvature, acc)
         for j in range(BLOCK):
-            force[r, base + j] = k_spring * acc[j]
+            force[r, base + j] = k_spring * acc[j] - offset
     else:
         for j in range(BLOCK):
             s = base + j
             if s < steps:
                 force[r, s] = k_spring * force_tree(
                     h, prefix, tree, level_offsets, top_level, leaf_size, r, n, first + s, d, curvature, 0, 1
-                )
+                ) - offset
