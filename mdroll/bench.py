@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .devices import resolve_device, synchronize, to_warp, usable_devices, warp
-from .ensemble.force import ALGORITHMS, DEFAULT_BAND_LIMIT, DEFAULT_LEAF_SIZE, launch_force, prepare_lines
+from .ensemble.force import ALGORITHMS, DEFAULT_BAND_LIMIT, DEFAULT_LEAF_SIZE, force_command, prepare_lines
 from .ensemble.lines import rough_lines
 from .ensemble.pipeline import H_BOUND_SIGMAS, run_ensemble
 from .params import Params
@@ -54,8 +54,8 @@ class StudySize:
     thesis: bool
     cpu_refinement: tuple | None = None
     cpu_distance: tuple | None = None
-    #: CUDA refinement realizations per algorithm where they differ from ``refinement``'s
-    cuda_refinement_realizations: dict = field(default_factory=dict)
+    #: CUDA realizations per section and algorithm where they differ from the section's own
+    cuda_realizations: dict = field(default_factory=dict)
 
     def sweeps(self, device: str) -> dict:
         """``{section: ([Params per size], realizations)}`` for ``device``."""
@@ -76,9 +76,10 @@ STUDIES = {
                       ensemble=(18, (1, 4, 16, 64, 256, 1024)), compare=(18, 64), stages=Params(L=5.24288, n_real=300),
                       thesis=True, cpu_refinement=(0.25, (13, 14, 15, 16, 17, 18), 1),
                       cpu_distance=((14, 15, 16, 17, 18, 19, 20, 21, 22), 1),
-                      # edge at 64 x 2^17 takes ~70 us, near the fixed cost of a launch and its
-                      # clock (n^0.79 measured): 256 lines keep every size well above it
-                      cuda_refinement_realizations={"edge": 256}),
+                      # edge at 64 x 2^16 takes ~35 us, tree ~0.2 ms: near the ~20 us of a
+                      # launch and its clock, they pulled the fitted slopes below 1 (distance
+                      # n^0.75 and n^0.82 in the v5 study); 256 lines keep every size well above
+                      cuda_realizations={"refinement": {"edge": 256}, "distance": {"edge": 256, "tree": 256}}),
 }
 #: Largest problem (realizations x points) per device and algorithm in a full study: on one CPU
 #: core direct takes ~1 us a step, tree ~0.05 us, edge ~0.02 us; on the GPU the direct sum under
@@ -88,9 +89,11 @@ POINT_LIMIT = {"cpu": {"direct": 2**20, "tree": 2**22, "edge": 2**23}, "cuda": {
 
 def timed(fn, device: str, repeats: int, setup=None) -> tuple[float, list[float]]:
     """Median and all wall times (s) of ``fn(setup(i))`` for i in range(repeats): ``setup``
-    makes fresh inputs outside the clock; the device is synchronized before each clock read."""
+    makes fresh inputs outside the clock (the previous ones are dropped first, so two sets never
+    share the device); the device is synchronized before each clock read."""
     times = []
     for i in range(repeats):
+        arg = None  # the previous inputs go before the next are made
         arg = setup(i) if setup else None
         synchronize(device)
         t0 = time.perf_counter()
@@ -111,8 +114,12 @@ def fit_exponent(n, t) -> tuple[float, float]:
 
 def force_time(params: Params, algorithm: str, realizations: int, device: str, repeats: int,
                boundary: str = "periodic", leaf_size: int = DEFAULT_LEAF_SIZE, band_limit: int = DEFAULT_BAND_LIMIT) -> dict:
-    """Median time (s) of the force launch alone and of the per-line build, on fresh lines each
-    repeat; ``leaf_size`` and ``band_limit`` tune the tree (:func:`mdroll.contact_force`)."""
+    """Median time (s) of the force kernel alone and of the per-line build, on fresh lines each
+    repeat; ``leaf_size`` and ``band_limit`` tune the tree (:func:`mdroll.contact_force`).
+
+    The launch is recorded outside the clock (:func:`mdroll.ensemble.force.force_command`):
+    its host work, ~0.2 ms for the tree whatever n, would otherwise flatten the slopes of the
+    small GPU sizes."""
     wp = warp()
     d = params.d0
     h_bound = H_BOUND_SIGMAS * params.h0
@@ -123,12 +130,15 @@ def force_time(params: Params, algorithm: str, realizations: int, device: str, r
     def build(lines):
         return prepare_lines(lines, params, algorithm, boundary, d, device, leaf_size, h_bound, band_limit)
 
-    first = build(fresh_lines(0))
-    out = wp.empty((realizations, first.steps), dtype=wp.float64, device=device)
-    force_s, times = timed(lambda prepared: launch_force(prepared, params, algorithm, d, device, out=out), device,
-                           repeats, setup=lambda i: build(fresh_lines(i + 1)))
+    steps = build(fresh_lines(0)).steps
+    out = wp.empty((realizations, steps), dtype=wp.float64, device=device)
+
+    def recorded(i):
+        command, _ = force_command(build(fresh_lines(i + 1)), params, algorithm, d, device, out=out)
+        return command
+
+    force_s, times = timed(lambda command: command.launch(), device, repeats, setup=recorded)
     build_s, _ = timed(build, device, repeats, setup=lambda i: fresh_lines(i + 1))
-    steps = first.steps
     return {"algorithm": algorithm, "device": device, "n": params.n_points, "dx": params.dx, "L": params.length,
             "realizations": realizations, "steps": steps, "force_s": force_s, "force_times_s": times, "build_s": build_s,
             "leaf_size": leaf_size, "band_limit": band_limit, "ns_per_step": force_s / (realizations * steps) * 1e9,
@@ -183,8 +193,8 @@ def run_study(size: str = "quick", devices=None, progress=print) -> dict:
             sizes, reps = study.sweeps(device)[section]
             for algorithm in ALGORITHMS:
                 count = reps
-                if section == "refinement" and device.startswith("cuda"):
-                    count = study.cuda_refinement_realizations.get(algorithm, reps)
+                if device.startswith("cuda"):
+                    count = study.cuda_realizations.get(section, {}).get(algorithm, reps)
                 for p in sizes:
                     if _allowed(device, algorithm, p.n_points, count, full):
                         record[section].append(force_time(p, algorithm, count, device, study.repeats))
