@@ -134,10 +134,10 @@ def force_time(params: Params, algorithm: str, realizations: int, device: str, r
     out = wp.empty((realizations, steps), dtype=wp.float64, device=device)
 
     def recorded(i):
-        command, _ = force_command(build(fresh_lines(i + 1)), params, algorithm, d, device, out=out)
-        return command
+        prepared = build(fresh_lines(i + 1))
+        return force_command(prepared, params, algorithm, d, device, out=out)[0], prepared
 
-    force_s, times = timed(lambda command: command.launch(), device, repeats, setup=recorded)
+    force_s, times = timed(lambda command_and_lines: command_and_lines[0].launch(), device, repeats, setup=recorded)
     build_s, _ = timed(build, device, repeats, setup=lambda i: fresh_lines(i + 1))
     return {"algorithm": algorithm, "device": device, "n": params.n_points, "dx": params.dx, "L": params.length,
             "realizations": realizations, "steps": steps, "force_s": force_s, "force_times_s": times, "build_s": build_s,

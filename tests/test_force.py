@@ -238,15 +238,17 @@ def test_window_beyond_the_exact_closed_forms_is_refused(algorithm):
 
 
 @pytest.mark.parametrize("boundary", ["open", "periodic"])
-def test_prepared_bounds_and_prefix_sums_against_numpy(device, boundary):
-    """Row bounds (coalesced partials on CUDA) equal numpy's min and max; the prefix sums, one
-    scan over the batch read as overlapping rows, give numpy's row-wise cumulative sums as
-    differences S_j - S_0 (eq 18)."""
+@pytest.mark.parametrize("h_max", [None, 6 * SMALL.h0])
+def test_prepared_bounds_and_prefix_sums_against_numpy(device, boundary, h_max):
+    """Row bounds equal numpy's min and max, whether from their own pass (coalesced partials on
+    CUDA; h_max not given) or from the tree's root (h_max given); the prefix sums, one scan over
+    the batch read as overlapping rows, give numpy's row-wise cumulative sums as differences
+    S_j - S_0 (eq 18)."""
     from mdroll.ensemble.force import prepare_lines
 
     p = SMALL
     lines = _lines(p, 4, 3, device)
-    prepared = prepare_lines(lines, p, "tree", boundary, p.d0, device)
+    prepared = prepare_lines(lines, p, "tree", boundary, p.d0, device, h_max=h_max)
     host, work = to_numpy(lines), to_numpy(prepared.lines)
     np.testing.assert_array_equal(to_numpy(prepared.bounds), np.stack([host.min(axis=1), host.max(axis=1)], axis=1))
     prefix = to_numpy(prepared.prefix)

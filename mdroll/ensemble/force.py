@@ -156,8 +156,10 @@ def tree_levels(n: int, leaf_size: int) -> list[int]:
 
 
 def _min_max_tree(lines, leaf_size: int, device):
+    """The implicit (min h, max h) tree of each row (kernels/tree.py), its level offsets (device
+    int32), its top level, and its root per row: the row bounds, as a (R,) ``vec2d`` array."""
     from ..kernels.common import TREE_STACK_CAPACITY
-    from ..kernels.lines import segment_min_max, tree_parents
+    from ..kernels.lines import row_min_max, segment_min_max, tree_parents
 
     wp = warp()
     rows, n = lines.shape
@@ -179,7 +181,10 @@ def _min_max_tree(lines, leaf_size: int, device):
             inputs=[tree, int(offsets[level - 1]), counts[level - 1], int(offsets[level])],
             device=device,
         )
-    return tree, wp.array(offsets[:-1], dtype=wp.int32, device=device), top_level
+    root = wp.empty(rows, dtype=wp.vec2d, device=device)
+    top = int(offsets[top_level])
+    wp.launch(row_min_max, dim=rows, inputs=[tree[:, top:top + 1], 1, root], device=device)
+    return tree, wp.array(offsets[:-1], dtype=wp.int32, device=device), top_level, root
 
 
 def prepare_lines(
@@ -205,9 +210,10 @@ def prepare_lines(
     wp = warp()
     rows, n = lines.shape
     # the row bounds and the largest height of all rows (one host copy): for the default h_max
-    # and the direct/tree windows; edge needs neither
+    # and the direct/tree windows; edge needs neither, and the tree's root holds them once
+    # h_max is given (one pass over the lines fewer)
     bounds = h_top = None
-    if h_max is None or algorithm in ("direct", "tree"):
+    if h_max is None or algorithm == "direct":
         bounds = _row_bounds(lines, device)
         h_top = float(bounds.numpy()[:, 1].max())
     if h_max is None:
@@ -222,6 +228,11 @@ def prepare_lines(
                              band_limit=band_limit)
     if algorithm in ("tree", "edge"):
         prepared.prefix, prepared.prefix_owner = _prefix_sums(work, device)
+    if algorithm == "tree":
+        prepared.tree, prepared.level_offsets, prepared.top_level, root = _min_max_tree(work, leaf_size, device)
+        if prepared.bounds is None:
+            prepared.bounds = root
+            h_top = float(root.numpy()[:, 1].max())
     if algorithm in ("direct", "tree"):
         # each line's window comes from its own maximum (the kernels read ``bounds``), not h_max
         prepared.h_top = h_top
@@ -231,8 +242,6 @@ def prepare_lines(
                 f"dx = {params.dx!r} m is too fine for the {algorithm} kernel: the contact window spans {window} springs "
                 f"a side, beyond the {MAX_CLOSED_FORM_OFFSET} for which its float64 closed-form sums of squares are exact"
             )
-    if algorithm == "tree":
-        prepared.tree, prepared.level_offsets, prepared.top_level = _min_max_tree(work, leaf_size, device)
     return prepared
 
 
@@ -281,7 +290,8 @@ def force_command(prepared: PreparedLines, params: Params, algorithm: str, d: fl
     """The force launch of :func:`launch_force`, recorded (a ``wp.Launch``; run it with
     ``.launch()``), and the array it writes: the host work of a launch (the lift table's upload,
     the arguments' packing; ~0.2 ms for the tree) is done here once, so that the scaling study
-    can time the kernel alone."""
+    can time the kernel alone. Keep ``prepared`` alive while the command may run: it owns the
+    memory behind its prefix-sum rows (``prefix_owner``)."""
     from ..kernels.common import BLOCK
     from ..kernels.direct import contact_force_direct
     from ..kernels.edge import contact_force_edge
