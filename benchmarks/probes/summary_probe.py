@@ -6,12 +6,10 @@ resident threads, so a second, nearly empty wave may cost as much as the first.
 """
 import argparse
 import json
-import statistics
-import time
-
 import numpy as np
 
 from mdroll import Params
+from mdroll.bench import timed
 from mdroll.devices import to_warp, warp
 from mdroll.ensemble import spectra
 from mdroll.kernels import spectra as kernels
@@ -21,16 +19,9 @@ DEVICE = "cuda:0"
 P = Params(L=5.24288)
 
 
-def median_ms(fn, repeats=7):
-    fn()
-    times = []
-    for _ in range(repeats):
-        wp.synchronize_device(DEVICE)
-        t = time.perf_counter()
-        fn()
-        wp.synchronize_device(DEVICE)
-        times.append(time.perf_counter() - t)
-    return 1e3 * statistics.median(times)
+def median_ms(fn):
+    fn()  # warm-up
+    return 1e3 * timed(fn, DEVICE, 7)[0]
 
 
 def main():
