@@ -27,8 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .devices import resolve_device, synchronize, to_warp, usable_devices, warp
-from .ensemble.force import (ALGORITHMS, DEFAULT_BAND_LIMIT, DEFAULT_CHUNK_BLOCKS, DEFAULT_LEAF_SIZE, force_command,
-                             prepare_lines)
+from .ensemble.force import ALGORITHMS, DEFAULT_BAND_LIMIT, DEFAULT_LEAF_SIZE, force_command, prepare_lines
 from .ensemble.lines import rough_lines
 from .ensemble.pipeline import H_BOUND_SIGMAS, run_ensemble
 from .params import Params
@@ -114,11 +113,9 @@ def fit_exponent(n, t) -> tuple[float, float]:
 
 
 def force_time(params: Params, algorithm: str, realizations: int, device: str, repeats: int,
-               boundary: str = "periodic", leaf_size: int = DEFAULT_LEAF_SIZE, band_limit: int = DEFAULT_BAND_LIMIT,
-               chunk_blocks: int = DEFAULT_CHUNK_BLOCKS) -> dict:
+               boundary: str = "periodic", leaf_size: int = DEFAULT_LEAF_SIZE, band_limit: int = DEFAULT_BAND_LIMIT) -> dict:
     """Median time (s) of the force kernel alone and of the per-line build, on fresh lines each
-    repeat; ``leaf_size``, ``band_limit`` and ``chunk_blocks`` tune the tree
-    (:func:`mdroll.ensemble.force.prepare_lines`).
+    repeat; ``leaf_size`` and ``band_limit`` tune the tree (:func:`mdroll.contact_force`).
 
     The launch is recorded outside the clock (:func:`mdroll.ensemble.force.force_command`):
     its host work, ~0.2 ms for the tree whatever n, would otherwise flatten the slopes of the
@@ -131,7 +128,7 @@ def force_time(params: Params, algorithm: str, realizations: int, device: str, r
         return to_warp(rough_lines(params, seed, realizations, device=device), device)
 
     def build(lines):
-        return prepare_lines(lines, params, algorithm, boundary, d, device, leaf_size, h_bound, band_limit, chunk_blocks)
+        return prepare_lines(lines, params, algorithm, boundary, d, device, leaf_size, h_bound, band_limit)
 
     steps = build(fresh_lines(0)).steps
     out = wp.empty((realizations, steps), dtype=wp.float64, device=device)
@@ -144,7 +141,7 @@ def force_time(params: Params, algorithm: str, realizations: int, device: str, r
     build_s, _ = timed(build, device, repeats, setup=lambda i: fresh_lines(i + 1))
     return {"algorithm": algorithm, "device": device, "n": params.n_points, "dx": params.dx, "L": params.length,
             "realizations": realizations, "steps": steps, "force_s": force_s, "force_times_s": times, "build_s": build_s,
-            "leaf_size": leaf_size, "band_limit": band_limit, "chunk_blocks": chunk_blocks, "ns_per_step": force_s / (realizations * steps) * 1e9,
+            "leaf_size": leaf_size, "band_limit": band_limit, "ns_per_step": force_s / (realizations * steps) * 1e9,
             "springs_in_contact": params.springs_in_contact}
 
 

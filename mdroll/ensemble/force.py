@@ -28,10 +28,6 @@ DEFAULT_LEAF_SIZE = 32
 #: 0.25 m; 89 vs 165 ms at 2^22), and the descent's better exponent (1.20 vs 1.47) would only
 #: pay beyond ~2^25, past the closed forms' range (MAX_CLOSED_FORM_OFFSET).
 DEFAULT_BAND_LIMIT = 2**30
-#: Blocks of 8 offsets per chunk of a directly summed tree band (kernels/tree.py,
-#: ``chunked_band_sum``): chunks the leaf bounds show empty or full are not summed spring by
-#: spring; 0 sums every band whole.
-DEFAULT_CHUNK_BLOCKS = 4
 
 
 def check_choice(name: str, value, allowed) -> str:
@@ -111,7 +107,6 @@ class PreparedLines:
     top_level: int = 0
     leaf_size: int = DEFAULT_LEAF_SIZE
     band_limit: int = DEFAULT_BAND_LIMIT
-    chunk_blocks: int = DEFAULT_CHUNK_BLOCKS
     h_top: float = 0.0  # the largest height of all rows (m; direct and tree)
     prefix_owner: object = None  # the flat array behind ``prefix`` (:func:`_prefix_sums`)
 
@@ -202,7 +197,6 @@ def prepare_lines(
     leaf_size: int = DEFAULT_LEAF_SIZE,
     h_max: float | None = None,
     band_limit: int = DEFAULT_BAND_LIMIT,
-    chunk_blocks: int = DEFAULT_CHUNK_BLOCKS,
 ) -> PreparedLines:
     """Bounds, wrapped copy, prefix sums and tree as the algorithm needs them (see PreparedLines).
 
@@ -231,7 +225,7 @@ def prepare_lines(
         work = wp.empty((rows, n + 2 * first), dtype=wp.float64, device=device)
         wp.launch(periodic_extend, dim=work.shape, inputs=[lines, n, first, work], device=device)
     prepared = PreparedLines(lines=work, n_work=work.shape[1], first=first, steps=steps, bounds=bounds, leaf_size=leaf_size,
-                             band_limit=band_limit, chunk_blocks=chunk_blocks)
+                             band_limit=band_limit)
     if algorithm in ("tree", "edge"):
         prepared.prefix, prepared.prefix_owner = _prefix_sums(work, device)
     if algorithm == "tree":
@@ -319,7 +313,7 @@ def force_command(prepared: PreparedLines, params: Params, algorithm: str, d: fl
         kernel = contact_force_direct
     elif algorithm == "tree":
         inputs = [p.lines, p.prefix, p.tree, p.level_offsets, lifts, origin, p.top_level, p.leaf_size, p.band_limit,
-                  p.chunk_blocks, p.n_work, p.first, p.steps, d, curvature, params.k_spring, offset, force]
+                  p.n_work, p.first, p.steps, d, curvature, params.k_spring, offset, force]
         kernel = contact_force_tree
     else:
         inputs = [p.prefix, p.first, edge_geometry(params, d), offset, force]

@@ -304,89 +304,6 @@ def band_descent(
     return acc
 
 
-@wp.func
-def full_offsets_sum(
-    prefix: wp.array2d(dtype=wp.float64),
-    r: int,
-    c: int,
-    first_offset: int,
-    last_offset: int,
-    d: wp.float64,
-    curvature: wp.float64,
-    acc: block_values,
-) -> block_values:
-    """Add ``sum_{m=first}^{last} (h_{c+j+m} + d - curvature m^2)`` (m) to ``acc[j]`` for the 8
-    steps j = 0..7, springs all in contact: eq 19-20 from the prefix sums, the sum of squares
-    shared by the 8 steps (the offsets are the same for each)."""
-    lift_sum = wp.float64(last_offset - first_offset + 1) * d - curvature * sum_of_squares(first_offset, last_offset)
-    for j in range(BLOCK):
-        acc[j] = acc[j] + (prefix[r, c + j + last_offset + 1] - prefix[r, c + j + first_offset]) + lift_sum
-    return acc
-
-
-@wp.func
-def chunked_band_sum(
-    row: wp.array(dtype=wp.float64),
-    prefix: wp.array2d(dtype=wp.float64),
-    tree: wp.array2d(dtype=wp.vec2d),
-    level_offsets: wp.array(dtype=int),
-    leaf_size: int,
-    r: int,
-    c: int,
-    first_offset: int,
-    blocks: int,
-    chunk_blocks: int,
-    lifts: wp.array(dtype=wp.float64),
-    lift_origin: int,
-    d: wp.float64,
-    curvature: wp.float64,
-    acc: block_values,
-) -> block_values:
-    """:func:`blocked_spring_sum` over the offsets ``first_offset .. first_offset + 8 blocks - 1``
-    (all of one sign: one side of the wheel), chunk by chunk of ``chunk_blocks`` blocks (all at
-    once for 0).
-
-    The tree bounds each chunk's springs (``c + m0 .. c + m1 + 7``) by (min h, max h) over their
-    leaves, and the lift table gives the indenter's highest and lowest point over its offsets
-    (at the offset nearest to and farthest from the wheel). A chunk with ``max h + highest lift
-    <= 0`` holds ``u <= 0`` for every spring and step (rounding is monotonic) and adds exactly
-    nothing; consecutive chunks with ``min h + lowest lift > 0`` are in contact throughout and
-    are summed by one closed form (:func:`full_offsets_sum`); only the others are summed spring
-    by spring. Under refinement a band grows as 1/dx, but most of it is either side of the
-    contact edges: its cost then grows with the number of chunks, not of springs.
-    """
-    if chunk_blocks <= 0:
-        return blocked_spring_sum(row, c, first_offset, blocks, lifts, lift_origin, d, curvature, acc)
-    zero = wp.float64(0.0)
-    full_from = int(0)
-    in_full = int(0)
-    b = int(0)
-    while b < blocks:
-        count = wp.min(chunk_blocks, blocks - b)
-        m0 = first_offset + b * BLOCK
-        m1 = m0 + count * BLOCK - 1
-        box = range_bounds(tree, level_offsets, leaf_size, r, c + m0, c + m1 + BLOCK - 1)
-        near = m0
-        far = m1
-        if m0 < 0:
-            near = m1
-            far = m0
-        if box[0] + lifts[lift_origin + far] > zero:
-            if in_full == 0:
-                full_from = m0
-                in_full = 1
-        else:
-            if in_full == 1:
-                acc = full_offsets_sum(prefix, r, c, full_from, m0 - 1, d, curvature, acc)
-                in_full = 0
-            if box[1] + lifts[lift_origin + near] > zero:
-                acc = blocked_spring_sum(row, c, m0, count, lifts, lift_origin, d, curvature, acc)
-        b += count
-    if in_full == 1:
-        acc = full_offsets_sum(prefix, r, c, full_from, first_offset + blocks * BLOCK - 1, d, curvature, acc)
-    return acc
-
-
 @wp.kernel
 def contact_force_tree(
     h: wp.array2d(dtype=wp.float64),
@@ -398,7 +315,6 @@ def contact_force_tree(
     top_level: int,
     leaf_size: int,
     band_limit: int,
-    chunk_blocks: int,
     n: int,
     first: int,
     steps: int,
@@ -450,15 +366,14 @@ def contact_force_tree(
                                c + core_right + 1, c + BLOCK - 1 + outer_right, d, curvature, acc)
         else:
             right_blocks = (outer_right - core_right + BLOCK - 1) // BLOCK
-            acc = chunked_band_sum(row, prefix, tree, level_offsets, leaf_size, r, c, core_right + 1, right_blocks,
-                                   chunk_blocks, lifts, lift_origin, d, curvature, acc)
+            acc = blocked_spring_sum(row, c, core_right + 1, right_blocks, lifts, lift_origin, d, curvature, acc)
         if descend_left:
             acc = band_descent(h, prefix, tree, level_offsets, top_level, leaf_size, r, c,
                                c - outer_left, c + BLOCK - 1 - core_left - 1, d, curvature, acc)
         else:
             left_blocks = (outer_left - core_left + BLOCK - 1) // BLOCK
-            acc = chunked_band_sum(row, prefix, tree, level_offsets, leaf_size, r, c, -core_left - left_blocks * BLOCK,
-                                   left_blocks, chunk_blocks, lifts, lift_origin, d, curvature, acc)
+            acc = blocked_spring_sum(row, c, -core_left - left_blocks * BLOCK, left_blocks, lifts, lift_origin, d,
+                                     curvature, acc)
         for j in range(BLOCK):
             force[r, base + j] = k_spring * acc[j] - offset
     else:
