@@ -227,7 +227,7 @@ def test_series_sums_against_numpy_and_a_sequential_loop(device):
     force[1, 200] = -3.0  # the edge formula can go below zero
     force[2, 5] = np.nan
     u = force - p.F_N
-    sums = series_sums(to_warp(u, device), p, device, decoupled=True)
+    sums = to_numpy(series_sums(to_warp(u, device), p, device, decoupled=True))
     assert sums[:, LOST].tolist() == [0, 11, 0] and sums[:, NOT_FINITE].tolist() == [0, 0, 1]
     for r in (0, 1):
         scale = np.abs(u[r]).sum()
@@ -239,7 +239,7 @@ def test_series_sums_against_numpy_and_a_sequential_loop(device):
             y += p.dt * v
         assert sums[r, FINAL_Y] == pytest.approx(y, rel=1e-9)
         assert sums[r, FINAL_V] == pytest.approx(v, rel=1e-9)
-    coupled = series_sums(to_warp(u, device), p, device, decoupled=False)
+    coupled = to_numpy(series_sums(to_warp(u, device), p, device, decoupled=False))
     assert np.all(coupled[:, FINAL_Y:] == 0.0)
     np.testing.assert_array_equal(coupled[:, :FINAL_Y], sums[:, :FINAL_Y])
 

@@ -11,14 +11,15 @@ import numpy as np
 import warp as wp
 
 from mdroll import Params
-from mdroll.kernels.lines import TWO_PI, line_scales, mode_amplitudes, random_phase_spectrum, uniform_from_counter
+from mdroll.kernels.lines import (TWO_PI, line_scales, mode_amplitudes, random_phase_spectrum, realization_key,
+                                 uniform_from_key)
 
 
 @wp.kernel
 def no_trig(realizations: wp.array(dtype=wp.int64), seed: wp.uint64, amplitudes: wp.array(dtype=wp.float64),
             spectrum: wp.array2d(dtype=wp.vec2d)):
     r, k = wp.tid()
-    u = uniform_from_counter(seed, realizations[r], k)
+    u = uniform_from_key(realization_key(seed, realizations[r]), k)
     spectrum[r, k] = wp.vec2d(amplitudes[k] * u, u)
 
 
@@ -44,11 +45,12 @@ def main():
     rows = wp.array(np.arange(300), dtype=wp.int64, device=device)
     amplitudes = wp.empty(bins, dtype=wp.float64, device=device)
     scales = wp.empty(300, dtype=wp.float64, device=device)
+    keys = wp.empty(300, dtype=wp.uint64, device=device)
     spectrum = wp.empty((300, bins), dtype=wp.vec2d, device=device)
     cases = {
         "mode_amplitudes": lambda: wp.launch(mode_amplitudes, dim=bins, inputs=[k_first, k_last, -(p.H + 0.5), amplitudes], device=device),
-        "line_scales": lambda: wp.launch(line_scales, dim=300, inputs=[rows, wp.uint64(0), amplitudes, n // 2, 1.0, 1.0, scales], device=device),
-        "random_phase_spectrum": lambda: wp.launch(random_phase_spectrum, dim=(300, bins), inputs=[rows, wp.uint64(0), amplitudes, n // 2, scales, spectrum], device=device),
+        "line_scales": lambda: wp.launch(line_scales, dim=300, inputs=[rows, wp.uint64(0), amplitudes, n // 2, 1.0, 1.0, scales, keys], device=device),
+        "random_phase_spectrum": lambda: wp.launch(random_phase_spectrum, dim=(300, bins), inputs=[keys, amplitudes, n // 2, scales, spectrum], device=device),
         "no trigonometry": lambda: wp.launch(no_trig, dim=(300, bins), inputs=[rows, wp.uint64(0), amplitudes, spectrum], device=device),
         "no hash": lambda: wp.launch(no_hash, dim=(300, bins), inputs=[amplitudes, spectrum], device=device),
         "write only": lambda: wp.launch(write_only, dim=(300, bins), inputs=[amplitudes, spectrum], device=device),

@@ -1,7 +1,7 @@
 """Batched real FFTs along the last axis: pyfftw on the CPU, cuFFT (CuPy) on CUDA.
 
-A CUDA run never falls back to a CPU FFT. Both follow NumPy's normalization: ``rfft`` is
-unnormalized, ``irfft`` divides by n.
+A CUDA run never falls back to a CPU FFT. Neither direction is normalized: ``rfft`` follows
+NumPy, ``irfft`` is NumPy's times n (its callers build spectra already scaled).
 
 On the CPU each row is transformed by the same cached one-row plan, so a row's result does not
 depend on how many rows travel with it (FFTW's plans for different batch counts round
@@ -51,23 +51,42 @@ def _threads() -> int:
     return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
 
 
+@functools.lru_cache(maxsize=4)
+def _cuda_plan(n: int, fft_type: int, batch: int, ordinal: int):
+    """A cuFFT plan for ``batch`` contiguous transforms of length n on GPU ``ordinal``, kept for
+    the next batch of the same shape (its work area, up to the size of the data, stays
+    allocated while it is cached)."""
+    import cupy
+
+    with cupy.cuda.Device(ordinal):
+        return cupy.cuda.cufft.Plan1d(n, fft_type, batch)
+
+
 def irfft_rows(spectrum, n: int, device: str):
-    """Inverse real FFT of each row of a half spectrum (complex, shape (R, n//2+1)) to length n.
+    """Unnormalized inverse real FFT of each row of a half spectrum (complex, shape (R, n//2+1)):
+    ``h_j = sum_{k=-n/2}^{n/2} X_k exp(2 pi i j k / n)`` with ``X_{-k} = conj(X_k)``, no 1/n
+    (the caller scales the spectrum; physics.md section 3's sum as written).
 
     ``spectrum`` is a Warp ``vec2d`` array (or complex NumPy/CuPy array) on ``device``; on CUDA
-    the transform may overwrite it (no copy first: 5.8 instead of 7.0 ms at 300 x 2^20 on an
-    H200). Returns a float64 NumPy array on the CPU, a float64 Warp array on CUDA.
+    the transform overwrites it. On CUDA the cached cuFFT plan runs on the spectrum's own memory:
+    CuPy's ``irfft`` would first copy a view like this one, and scale by 1/n in a second pass,
+    ~1.8 ms of the 7.1 it took at 300 x 2^20 on an H200 (benchmarks/results/generate_probe_H200.json).
+    Returns a float64 NumPy array on the CPU, a float64 Warp array on CUDA.
     """
     wp = warp()
     if is_cuda(device):
         import cupy
-        import cupyx.scipy.fft
+        from cupy.cuda import cufft
 
         with cupy_stream(device):
             x = cupy_view(spectrum)
             if x.dtype != cupy.complex128:
                 x = x.view(cupy.complex128).reshape(x.shape[0], -1)
-            out = cupyx.scipy.fft.irfft(x, n=n, axis=-1, overwrite_x=True)
+            if x.shape[1] != n // 2 + 1 or not x.flags.c_contiguous:
+                raise ValueError(f"irfft_rows needs a contiguous (R, {n // 2 + 1}) half spectrum, got {x.shape}")
+            out = cupy.empty((x.shape[0], n), dtype=cupy.float64)
+            plan = _cuda_plan(n, cufft.CUFFT_Z2D, x.shape[0], wp.get_device(device).ordinal)
+            plan.fft(x, out, cufft.CUFFT_INVERSE)
         return wp.from_dlpack(out)
     x = spectrum.numpy() if isinstance(spectrum, wp.array) else np.asarray(spectrum)
     if x.dtype != np.complex128:
@@ -75,7 +94,7 @@ def irfft_rows(spectrum, n: int, device: str):
     fft = _pyfftw()
     out = np.empty((x.shape[0], n))
     for i, row in enumerate(x):
-        out[i] = fft.irfft(row, n=n, threads=_threads(), planner_effort="FFTW_ESTIMATE")
+        out[i] = fft.irfft(row, n=n, norm="forward", threads=_threads(), planner_effort="FFTW_ESTIMATE")
     return out
 
 

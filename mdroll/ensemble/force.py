@@ -260,16 +260,20 @@ def edge_geometry(params: Params, d: float):
     return geometry
 
 
-def lift_table(params: Params, d: float, h_top: float) -> tuple[np.ndarray, int]:
+def lift_table(params: Params, d: float, h_top: float, device: str):
     """The indenter profile ``d - curvature m^2`` (m) at offsets ``|m| <= window + 8`` (the window
-    of possible contact for heights up to ``h_top``, plus the blocked sums' padding) and the
-    index of m = 0: the table the register-blocked kernels read instead of recomputing it."""
-    from ..kernels.common import BLOCK
+    of possible contact for heights up to ``h_top``, plus the blocked sums' padding), as a Warp
+    array on ``device``, and the index of m = 0: the table the register-blocked kernels read
+    instead of recomputing it. Made by a kernel where it is read: an upload from pageable host
+    memory would wait for the device's queue to drain."""
+    from ..kernels.common import BLOCK, indenter_lifts
 
+    wp = warp()
     curvature = params.dx**2 / params.R
     reach_out = max(reach(d + h_top, curvature), 0) + BLOCK
-    m = np.arange(-reach_out, reach_out + 1, dtype=np.float64)
-    return d - curvature * m * m, reach_out
+    lifts = wp.empty(2 * reach_out + 1, dtype=wp.float64, device=device)
+    wp.launch(indenter_lifts, dim=lifts.shape, inputs=[d, curvature, reach_out, lifts], device=device)
+    return lifts, reach_out
 
 
 def launch_force(prepared: PreparedLines, params: Params, algorithm: str, d: float, device: str, out=None,
@@ -288,8 +292,8 @@ def launch_force(prepared: PreparedLines, params: Params, algorithm: str, d: flo
 def force_command(prepared: PreparedLines, params: Params, algorithm: str, d: float, device: str, out=None,
                   offset: float = 0.0):
     """The force launch of :func:`launch_force`, recorded (a ``wp.Launch``; run it with
-    ``.launch()``), and the array it writes: the host work of a launch (the lift table's upload,
-    the arguments' packing; ~0.2 ms for the tree) is done here once, so that the scaling study
+    ``.launch()``), and the array it writes: the host work of a launch (the lift table, the
+    arguments' packing; ~0.2 ms for the tree) is done here once, so that the scaling study
     can time the kernel alone. Keep ``prepared`` alive while the command may run: it owns the
     memory behind its prefix-sum rows (``prefix_owner``)."""
     from ..kernels.common import BLOCK
@@ -305,8 +309,7 @@ def force_command(prepared: PreparedLines, params: Params, algorithm: str, d: fl
     # direct and tree: one thread per BLOCK consecutive steps; edge: one per step
     dim = (rows, -(-p.steps // BLOCK))
     if algorithm in ("direct", "tree"):
-        table, origin = lift_table(params, d, p.h_top)
-        lifts = wp.array(table, dtype=wp.float64, device=device)
+        lifts, origin = lift_table(params, d, p.h_top, device)
     if algorithm == "direct":
         inputs = [p.lines, p.bounds, lifts, origin, p.n_work, p.first, p.steps, d, curvature, params.k_spring, offset,
                   force]

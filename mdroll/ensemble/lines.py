@@ -54,7 +54,7 @@ def rough_lines(params: Params, seed: int, realizations, device: str = "cpu"):
     over the line.
 
     The phase of mode k of realization j is a hash of (seed, j, k) alone (a counter-based
-    generator, :func:`mdroll.kernels.lines.uniform_from_counter`), so a line is the same to
+    generator, :func:`mdroll.kernels.lines.uniform_from_key`), so a line is the same to
     rounding whatever the batch it is made in and whatever the device.
 
     Parameters
@@ -77,8 +77,9 @@ def rough_lines(params: Params, seed: int, realizations, device: str = "cpu"):
 
 
 def random_spectra(params: Params, seed: int, realizations, device: str):
-    """The (R, n/2 + 1) half spectra (``wp.vec2d``, on ``device``) whose inverse real FFTs are
-    the lines of :func:`rough_lines`, already scaled to RMS h0."""
+    """The (R, n/2 + 1) half spectra (``wp.vec2d``, on ``device``) whose unnormalized inverse
+    real FFTs (:func:`mdroll.ensemble.fft.irfft_rows`) are the lines of :func:`rough_lines`,
+    already scaled to RMS h0."""
     from ..kernels.lines import line_scales, mode_amplitudes, random_phase_spectrum
 
     wp = warp()
@@ -96,9 +97,10 @@ def random_spectra(params: Params, seed: int, realizations, device: str):
     wp.utils.array_inner(amplitudes, amplitudes, out=sum_of_squares)
     rows = wp.array(indices, dtype=wp.int64, device=device)
     scales = wp.empty(indices.size, dtype=wp.float64, device=device)
+    keys = wp.empty(indices.size, dtype=wp.uint64, device=device)
     wp.launch(line_scales, dim=indices.size,
-              inputs=[rows, wp.uint64(seed), amplitudes, nyquist, sum_of_squares, params.h0 * n, scales], device=device)
+              inputs=[rows, wp.uint64(seed), amplitudes, nyquist, sum_of_squares, params.h0, scales, keys], device=device)
     spectrum = wp.empty((indices.size, bins), dtype=wp.vec2d, device=device)
     wp.launch(random_phase_spectrum, dim=spectrum.shape,
-              inputs=[rows, wp.uint64(seed), amplitudes, nyquist, scales, spectrum], device=device)
+              inputs=[keys, amplitudes, nyquist, scales, spectrum], device=device)
     return spectrum

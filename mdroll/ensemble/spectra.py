@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from ..devices import cupy_stream, cupy_view, is_cuda, warp
+from ..devices import cupy_stream, cupy_view, is_cuda, to_warp, warp
 from ..params import Params
 from ..kernels.spectra import SUM_COLUMNS
 from .fft import rfft_rows
@@ -83,9 +83,10 @@ def complex_rows(spectrum, device: str):
                     device="cpu", copy=False)
 
 
-def series_sums(deviation, params: Params, device: str, decoupled: bool) -> np.ndarray:
+def series_sums(deviation, params: Params, device: str, decoupled: bool):
     """Per row of ``deviation`` (R, N; the force less F_N, ``u = F - F_N``, N), one pass that
-    only reads: the host (R, SUM_COLUMNS) array of ``sum u`` (N), ``sum u^2`` (N^2), steps with
+    only reads: the (R, SUM_COLUMNS) Warp array on ``device`` (nothing waits for it) of
+    ``sum u`` (N), ``sum u^2`` (N^2), steps with
     contact lost (F <= 0), non-finite steps and, when ``decoupled``, the state (y_N (m),
     y'_N (m/s)) after the last step of the decoupled wheel started at rest (section 5.1; zeros
     otherwise). See :func:`mdroll.kernels.spectra.series_summary`."""
@@ -105,10 +106,10 @@ def series_sums(deviation, params: Params, device: str, decoupled: bool) -> np.n
               inputs=[deviation, steps, threads, params.F_N, 1.0 / params.m, weights, int(decoupled), partial], device=device)
     sums = wp.empty((rows, SUM_COLUMNS), dtype=wp.float64, device=device)
     wp.launch(add_partials, dim=(rows, SUM_COLUMNS), inputs=[partial, threads, sums], device=device)
-    return sums.numpy()
+    return sums
 
 
-def psd_moments_of_batch(force, accel, sums: np.ndarray, params: Params, device: str, window: bool = False):
+def psd_moments_of_batch(force, accel, sums, params: Params, device: str, window: bool = False):
     """Per-bin mean and M2 over the rows of the force and acceleration PSDs (section 6).
 
     One real FFT of each force row (and of each acceleration row when ``accel`` is given, the
@@ -116,10 +117,11 @@ def psd_moments_of_batch(force, accel, sums: np.ndarray, params: Params, device:
     computed from the force's and the final states in ``sums`` (:func:`series_sums`) bin by bin
     (:class:`mdroll.kernels.spectra.ResponseBin`): exact, and no acceleration series is needed.
 
-    Returns ``(force (K, 2), accel (K, 2), not_finite (R,))``: columns mean and M2 (NumPy on the
-    CPU, CuPy on CUDA), and a host flag per row whose PSD has NaN or infinity.
+    ``sums`` may be on the host or on ``device``. Returns ``(force (K, 2), accel (K, 2),
+    not_finite (R,))``: columns mean and M2, and a flag per row whose PSD has NaN or infinity,
+    all where the work ran (NumPy on the CPU, CuPy on CUDA; nothing waits for them).
     """
-    from ..kernels.spectra import psd_moments
+    from ..kernels.spectra import psd_moments_kernel
 
     wp = warp()
     rows, steps = force.shape
@@ -130,16 +132,15 @@ def psd_moments_of_batch(force, accel, sums: np.ndarray, params: Params, device:
     accel_moments = wp.empty(bins, dtype=wp.vec2d, device=device)
     not_finite = wp.zeros(rows, dtype=wp.int32, device=device)
     wp.launch(
-        psd_moments,
+        psd_moments_kernel(accel is None, bool(window)),
         dim=bins,
-        inputs=[force_spectrum, accel_spectrum, wp.array(sums, dtype=wp.float64, device=device), int(accel is None),
-                int(window), steps, params.dx / (2.0 * math.pi * steps), params.omega_0**2, params.dt, 1.0 / params.m,
+        inputs=[force_spectrum, accel_spectrum, to_warp(sums, device), steps,
+                params.dx / (2.0 * math.pi * steps), params.omega_0**2, params.dt, 1.0 / params.m,
                 force_moments, accel_moments, not_finite],
         device=device,
     )
-    views = [cupy_view(m).reshape(bins, 2) if is_cuda(device) else m.numpy().reshape(bins, 2)
-             for m in (force_moments, accel_moments)]
-    return views[0], views[1], not_finite.numpy()
+    force_view, accel_view = (array_rows(m, device).reshape(bins, 2) for m in (force_moments, accel_moments))
+    return force_view, accel_view, array_rows(not_finite, device)
 
 
 class RunningMoments:

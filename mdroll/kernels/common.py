@@ -130,6 +130,15 @@ def reach_strict(level: wp.float64, curvature: wp.float64) -> int:
     return m
 
 
+@wp.kernel
+def indenter_lifts(d: wp.float64, curvature: wp.float64, origin: int, lifts: wp.array(dtype=wp.float64)):
+    """``lifts[i] = d - curvature m^2`` (m) at offset ``m = i - origin``: the MDR indenter's
+    profile (eq 7, 10) that :func:`blocked_spring_sum` reads."""
+    i = wp.tid()
+    m = wp.float64(i - origin)
+    lifts[i] = d - curvature * m * m
+
+
 #: Steps per thread in the blocked kernels, and offsets per block: for each block of 8 offsets a
 #: thread loads the 15 heights that its 64 (step, offset) pairs need once, into registers.
 BLOCK = wp.constant(8)

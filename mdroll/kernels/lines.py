@@ -26,14 +26,19 @@ def mix64(z: wp.uint64) -> wp.uint64:
 
 
 @wp.func
-def uniform_from_counter(seed: wp.uint64, realization: wp.int64, mode: int) -> wp.float64:
-    """Uniform float64 in [0, 1) from the counter (seed, realization, mode) alone.
+def realization_key(seed: wp.uint64, realization: wp.int64) -> wp.uint64:
+    """``key = mix64(seed + G (realization + 1))`` (G the golden gamma): the per-realization
+    key of :func:`uniform_from_key`."""
+    return mix64(seed + GOLDEN_GAMMA * (wp.uint64(realization) + wp.uint64(1)))
 
-    ``key = mix64(seed + G (realization + 1))`` and ``u = mix64(key + G (mode + 1)) >> 11``
-    scaled by 2^-53 (G the golden gamma): a counter-based generator, so every phase depends
-    only on (seed, realization index, mode), whatever the batch or the device.
+
+@wp.func
+def uniform_from_key(key: wp.uint64, mode: int) -> wp.float64:
+    """Uniform float64 in [0, 1) from the counter (seed, realization, mode) alone:
+    ``u = mix64(key + G (mode + 1)) >> 11`` scaled by 2^-53, with ``key`` from
+    :func:`realization_key`. A counter-based generator, so every phase depends only on (seed,
+    realization index, mode), whatever the batch or the device.
     """
-    key = mix64(seed + GOLDEN_GAMMA * (wp.uint64(realization) + wp.uint64(1)))
     z = mix64(key + GOLDEN_GAMMA * (wp.uint64(mode) + wp.uint64(1)))
     return wp.float64(z >> wp.uint64(11)) * wp.float64(1.1102230246251565e-16)
 
@@ -59,26 +64,30 @@ def line_scales(
     sum_of_squares: wp.array(dtype=wp.float64),
     target: wp.float64,
     scales: wp.array(dtype=wp.float64),
+    keys: wp.array(dtype=wp.uint64),
 ):
-    """The factor on each row's amplitudes that makes the line's RMS ``target / n`` (h0 for
-    ``target = h0 n``), by Parseval before the inverse FFT instead of a pass over the line after:
-    ``mean(h^2) = (scale / n)^2 (2 sum_{0 < k < n/2} a_k^2 + (a_{n/2} cos phi_{n/2})^2)``, with
+    """The factor on each row's amplitudes that makes the line's RMS ``target`` (m; h0), by
+    Parseval before the inverse FFT instead of a pass over the line after: for the unnormalized
+    inverse (``mdroll.ensemble.fft.irfft_rows``)
+    ``mean(h^2) = scale^2 (2 sum_{0 < k < n/2} a_k^2 + (a_{n/2} cos phi_{n/2})^2)``, with
     ``sum_of_squares[0] = sum_k a_k^2`` over the whole half spectrum. Only the Nyquist mode
     (``nyquist`` = n/2 when the line has one, else -1) is real, so only its share depends on
-    the phase."""
+    the phase. Also writes each row's generator key (:func:`realization_key`), so that
+    :func:`random_phase_spectrum` hashes once per mode, not twice."""
     r = wp.tid()
+    key = realization_key(seed, realizations[r])
+    keys[r] = key
     total = wp.float64(2.0) * sum_of_squares[0]
     if nyquist > 0:
         a_nyquist = amplitudes[nyquist]
-        a = a_nyquist * wp.cos(TWO_PI * uniform_from_counter(seed, realizations[r], nyquist))
+        a = a_nyquist * wp.cos(TWO_PI * uniform_from_key(key, nyquist))
         total += a * a - wp.float64(2.0) * a_nyquist * a_nyquist
     scales[r] = target / wp.sqrt(total)
 
 
 @wp.kernel
 def random_phase_spectrum(
-    realizations: wp.array(dtype=wp.int64),
-    seed: wp.uint64,
+    keys: wp.array(dtype=wp.uint64),
     amplitudes: wp.array(dtype=wp.float64),
     nyquist: int,
     scales: wp.array(dtype=wp.float64),
@@ -86,7 +95,7 @@ def random_phase_spectrum(
 ):
     """Half spectrum X_k (k = 0..n/2) of one rough line per row, for an inverse real FFT:
     ``X_k = scales[r] a_k exp(i phi_k)`` (a_k from :func:`mode_amplitudes`), with
-    ``phi_k = 2 pi u(seed, realization, k)`` (eq 16-17). The Nyquist mode (k = ``nyquist``) of a
+    ``phi_k = 2 pi u(seed, realization, k)`` (eq 16-17; ``keys`` from :func:`line_scales`). The Nyquist mode (k = ``nyquist``) of a
     real line is real: ``X_{n/2} = scales[r] a_{n/2} cos(phi)``.
     """
     r, k = wp.tid()
@@ -94,7 +103,7 @@ def random_phase_spectrum(
     a = amplitudes[k]
     if a != wp.float64(0.0):
         amplitude = scales[r] * a
-        phase = TWO_PI * uniform_from_counter(seed, realizations[r], k)
+        phase = TWO_PI * uniform_from_key(keys[r], k)
         value = wp.vec2d(amplitude * wp.cos(phase), amplitude * wp.sin(phase))
         if k == nyquist:
             value = wp.vec2d(value[0], wp.float64(0.0))

@@ -5,6 +5,8 @@ and their ensemble moments.
 Complex numbers are ``wp.vec2d`` (real, imaginary), the layout of complex128.
 """
 
+import functools
+
 import warp as wp
 
 TWO_PI = wp.constant(wp.float64(6.283185307179586))
@@ -13,7 +15,7 @@ HANN_NORM = wp.constant(wp.float64(1.632993161855452))
 #: Threads sharing one series in :func:`series_summary` on CUDA; their partial sums are added
 #: in a fixed order, so the result does not depend on scheduling.
 SUMMARY_THREADS = 1024
-#: Columns of :func:`series_summary`'s sums, read by :func:`psd_moments` and the host.
+#: Columns of :func:`series_summary`'s sums, read by :func:`psd_moments_kernel`'s kernels and the host.
 SUM_DEVIATION = wp.constant(0)
 SUM_SQUARES = wp.constant(1)
 LOST = wp.constant(2)
@@ -53,6 +55,21 @@ def euler_impulse_response(phi: wp.float64, dt: wp.float64, weights: wp.array(dt
     weights[m] = p * ab - q * wp.vec2d(dt * dt, dt)
 
 
+@wp.func
+def summary_add(u: wp.float64, weight: wp.vec2d, F_N: wp.float64, sums: wp.vec4d, state: wp.vec2d):
+    """One step of :func:`series_summary`: ``sums += (u, u^2, u <= -F_N, 0)`` and
+    ``state += u weight`` for a finite u, ``sums += (0, 0, 0, 1)`` otherwise."""
+    if not wp.isfinite(u):
+        sums = sums + wp.vec4d(wp.float64(0.0), wp.float64(0.0), wp.float64(0.0), wp.float64(1.0))
+    else:
+        lost = wp.float64(0.0)
+        if u <= -F_N:
+            lost = wp.float64(1.0)
+        sums = sums + wp.vec4d(u, u * u, lost, wp.float64(0.0))
+        state = state + u * weight
+    return sums, state
+
+
 @wp.kernel
 def series_summary(
     deviation: wp.array2d(dtype=wp.float64),
@@ -77,28 +94,45 @@ def series_summary(
     ~1 N signal without the 40 kN mean, whose rounding would otherwise leak into every bin of
     the FFT, and this pass only reads. ``u <= -F_N`` is contact lost: it holds for every F <= 0
     (rounding is monotonic) and for no F above ulp(F_N)/2 (3.6e-12 N at 40 kN).
+
+    Each thread loads four steps before it adds them (in order, so the sums are those of one
+    step at a time): with one load in flight per thread the pass ran at 1.5 TB/s on an H200,
+    with four 2.5 TB/s (benchmarks/results/stage_probe_H200.json).
     """
     r, t = wp.tid()
-    total = wp.float64(0.0)
-    squares = wp.float64(0.0)
-    lost = wp.float64(0.0)
-    bad = wp.float64(0.0)
+    sums = wp.vec4d()
     state = wp.vec2d()
-    for s in range(t, steps, threads):
-        u = deviation[r, s]
-        if not wp.isfinite(u):
-            bad += wp.float64(1.0)
-        else:
-            total += u
-            squares += u * u
-            if u <= -F_N:
-                lost += wp.float64(1.0)
-            if with_state == 1:
-                state += u * weights[steps - 1 - s]
-    partial[r, t, SUM_DEVIATION] = total
-    partial[r, t, SUM_SQUARES] = squares
-    partial[r, t, LOST] = lost
-    partial[r, t, NOT_FINITE] = bad
+    zero = wp.vec2d()
+    s = t
+    while s + 3 * threads < steps:
+        u0 = deviation[r, s]
+        u1 = deviation[r, s + threads]
+        u2 = deviation[r, s + 2 * threads]
+        u3 = deviation[r, s + 3 * threads]
+        w0 = zero
+        w1 = zero
+        w2 = zero
+        w3 = zero
+        if with_state == 1:
+            w0 = weights[steps - 1 - s]
+            w1 = weights[steps - 1 - s - threads]
+            w2 = weights[steps - 1 - s - 2 * threads]
+            w3 = weights[steps - 1 - s - 3 * threads]
+        sums, state = summary_add(u0, w0, F_N, sums, state)
+        sums, state = summary_add(u1, w1, F_N, sums, state)
+        sums, state = summary_add(u2, w2, F_N, sums, state)
+        sums, state = summary_add(u3, w3, F_N, sums, state)
+        s += 4 * threads
+    while s < steps:
+        w = zero
+        if with_state == 1:
+            w = weights[steps - 1 - s]
+        sums, state = summary_add(deviation[r, s], w, F_N, sums, state)
+        s += threads
+    partial[r, t, SUM_DEVIATION] = sums[0]
+    partial[r, t, SUM_SQUARES] = sums[1]
+    partial[r, t, LOST] = sums[2]
+    partial[r, t, NOT_FINITE] = sums[3]
     partial[r, t, FINAL_Y] = -inv_mass * state[0]
     partial[r, t, FINAL_V] = -inv_mass * state[1]
 
@@ -180,57 +214,71 @@ def bin_value(
     return x
 
 
-@wp.kernel
-def psd_moments(
-    force_spectrum: wp.array2d(dtype=wp.vec2d),
-    accel_spectrum: wp.array2d(dtype=wp.vec2d),
-    states: wp.array2d(dtype=wp.float64),
-    decoupled: int,
-    window: int,
-    steps: int,
-    psd_scale: wp.float64,
-    omega2: wp.float64,
-    dt: wp.float64,
-    inv_mass: wp.float64,
-    force_moments: wp.array(dtype=wp.vec2d),
-    accel_moments: wp.array(dtype=wp.vec2d),
-    not_finite: wp.array(dtype=wp.int32),
-):
-    """Per bin k, the mean and M2 (sum of squared deviations) over the rows of the two-sided PSDs
-    ``C(q_k) = psd_scale |B_k|^2`` of the force (N^2 m) and the acceleration ((m/s^2)^2 m),
-    ``psd_scale = dx / (2 pi N)`` for unnormalized spectra (section 6: ``L/(2 pi) |X/N|^2``).
+@wp.func
+def is_finite_pair(v: wp.vec2d) -> bool:
+    return wp.isfinite(v[0]) and wp.isfinite(v[1])
+
+
+@wp.func
+def add_deviation(psd: wp.vec2d, shift: wp.vec2d, r: int, not_finite: wp.array(dtype=wp.int32), sums: wp.vec2d,
+                  squares: wp.vec2d):
+    """Flag row r if ``psd`` is not finite; add ``psd - shift`` and its square to the sums."""
+    if not is_finite_pair(psd):
+        not_finite[r] = 1
+    deviation = psd - shift
+    return sums + deviation, squares + wp.cw_mul(deviation, deviation)
+
+
+@functools.cache
+def psd_moments_kernel(decoupled: bool, window: bool) -> wp.Kernel:
+    """The PSD-moments kernel for one mode: ``decoupled`` (the acceleration's spectrum from the
+    force's) or coupled (from its own), with or without the Hann ``window``; each pair is
+    compiled apart (``wp.static``), so a kernel carries neither branch nor registers of the
+    others (1.50 -> 1.20 ms at 300 x 518,401 bins on an H200, decoupled without window:
+    benchmarks/results/stage_probe_H200_v2.json).
+
+    Launched over the bins k, it writes per bin the mean and M2 (sum of squared deviations)
+    over the rows of the two-sided PSDs ``C(q_k) = psd_scale |B_k|^2`` of the force (N^2 m) and
+    the acceleration ((m/s^2)^2 m), ``psd_scale = dx / (2 pi N)`` for unnormalized spectra
+    (section 6: ``L/(2 pi) |X/N|^2``).
 
     The force's X_k comes from ``force_spectrum`` (its mean removed by X_0 = 0); the
-    acceleration's from ``accel_spectrum`` (coupled) or, when ``decoupled`` is 1, from the force's
-    by :func:`bin_value` with ``states[r, FINAL_Y]``, ``states[r, FINAL_V]`` the final states
-    (:func:`series_summary`). ``window`` 1 applies the Hann window as a three-bin stencil. A row
-    with a non-finite PSD sets ``not_finite[r]``.
+    acceleration's from ``accel_spectrum`` (coupled) or, decoupled, from the force's by
+    :func:`bin_value` with ``states[r, FINAL_Y]``, ``states[r, FINAL_V]`` the final states
+    (:func:`series_summary`). The Hann window is a three-bin stencil. A row with a non-finite
+    PSD sets ``not_finite[r]``.
+
+    Per bin, the sums are of deviations from the first row's PSDs: the mean and M2 without a
+    division per row, and exact where every row has the same PSD. Rows go two at a time, both
+    loaded before either is added (in order, so the sums are the same).
     """
-    k = wp.tid()
-    rows = force_spectrum.shape[0]
-    bins = force_spectrum.shape[1]
-    centre = response_bin(k, steps, omega2, dt)
-    left = centre
-    right = centre
-    if window == 1:
-        left = response_bin(mirrored_bin(k - 1, bins, steps), steps, omega2, dt)
-        right = response_bin(mirrored_bin(k + 1, bins, steps), steps, omega2, dt)
-    # per bin, (force, accel) sums of deviations from the first row's PSDs: the mean and M2
-    # without a division per row, and exact where every row has the same PSD
-    shift = wp.vec2d()
-    sums = wp.vec2d()
-    squares = wp.vec2d()
-    for r in range(rows):
+
+    @wp.func
+    def row_psds(
+        force_spectrum: wp.array2d(dtype=wp.vec2d),
+        accel_spectrum: wp.array2d(dtype=wp.vec2d),
+        states: wp.array2d(dtype=wp.float64),
+        r: int,
+        k: int,
+        bins: int,
+        steps: int,
+        centre: ResponseBin,
+        left: ResponseBin,
+        right: ResponseBin,
+        inv_mass: wp.float64,
+        psd_scale: wp.float64,
+    ) -> wp.vec2d:
+        """(force PSD, acceleration PSD) of row r at bin k."""
         b_force = bin_value(force_spectrum, r, k, bins, steps, 0, centre, inv_mass, wp.vec2d())
         state = wp.vec2d(states[r, FINAL_Y], states[r, FINAL_V])
-        if decoupled == 1:
+        if wp.static(decoupled):
             b_accel = bin_value(force_spectrum, r, k, bins, steps, 1, centre, inv_mass, state)
         else:
             b_accel = bin_value(accel_spectrum, r, k, bins, steps, 0, centre, inv_mass, wp.vec2d())
-        if window == 1:
+        if wp.static(window):
             # the Hann window (0.5 - 0.5 cos(2 pi s / N)) / sqrt(3/8), of mean square 1, is a
             # three-bin stencil: (X_k / 2 - X_{k-1} / 4 - X_{k+1} / 4) / sqrt(3/8)
-            if decoupled == 1:
+            if wp.static(decoupled):
                 a_sides = bin_value(force_spectrum, r, k - 1, bins, steps, 1, left, inv_mass, state) + bin_value(
                     force_spectrum, r, k + 1, bins, steps, 1, right, inv_mass, state)
             else:
@@ -240,14 +288,53 @@ def psd_moments(
                 force_spectrum, r, k + 1, bins, steps, 0, right, inv_mass, wp.vec2d())
             b_force = HANN_NORM * (wp.float64(0.5) * b_force - wp.float64(0.25) * f_sides)
             b_accel = HANN_NORM * (wp.float64(0.5) * b_accel - wp.float64(0.25) * a_sides)
-        psd = psd_scale * wp.vec2d(wp.dot(b_force, b_force), wp.dot(b_accel, b_accel))
-        if not (wp.isfinite(psd[0]) and wp.isfinite(psd[1])):
-            not_finite[r] = 1
-        if r == 0:
-            shift = psd
-        deviation = psd - shift
-        sums += deviation
-        squares += wp.cw_mul(deviation, deviation)
-    count = wp.float64(rows)
-    force_moments[k] = wp.vec2d(shift[0] + sums[0] / count, wp.max(squares[0] - sums[0] * sums[0] / count, wp.float64(0.0)))
-    accel_moments[k] = wp.vec2d(shift[1] + sums[1] / count, wp.max(squares[1] - sums[1] * sums[1] / count, wp.float64(0.0)))
+        return psd_scale * wp.vec2d(wp.dot(b_force, b_force), wp.dot(b_accel, b_accel))
+
+    @wp.kernel(module="unique")
+    def psd_moments(
+        force_spectrum: wp.array2d(dtype=wp.vec2d),
+        accel_spectrum: wp.array2d(dtype=wp.vec2d),
+        states: wp.array2d(dtype=wp.float64),
+        steps: int,
+        psd_scale: wp.float64,
+        omega2: wp.float64,
+        dt: wp.float64,
+        inv_mass: wp.float64,
+        force_moments: wp.array(dtype=wp.vec2d),
+        accel_moments: wp.array(dtype=wp.vec2d),
+        not_finite: wp.array(dtype=wp.int32),
+    ):
+        k = wp.tid()
+        rows = force_spectrum.shape[0]
+        bins = force_spectrum.shape[1]
+        centre = response_bin(k, steps, omega2, dt)
+        left = centre
+        right = centre
+        if wp.static(window):
+            left = response_bin(mirrored_bin(k - 1, bins, steps), steps, omega2, dt)
+            right = response_bin(mirrored_bin(k + 1, bins, steps), steps, omega2, dt)
+        shift = row_psds(force_spectrum, accel_spectrum, states, 0, k, bins, steps, centre, left, right, inv_mass,
+                         psd_scale)
+        if not is_finite_pair(shift):
+            not_finite[0] = 1
+        sums = wp.vec2d()
+        squares = wp.vec2d()
+        r = int(1)
+        while r + 1 < rows:
+            a = row_psds(force_spectrum, accel_spectrum, states, r, k, bins, steps, centre, left, right, inv_mass,
+                         psd_scale)
+            b = row_psds(force_spectrum, accel_spectrum, states, r + 1, k, bins, steps, centre, left, right, inv_mass,
+                         psd_scale)
+            sums, squares = add_deviation(a, shift, r, not_finite, sums, squares)
+            sums, squares = add_deviation(b, shift, r + 1, not_finite, sums, squares)
+            r += 2
+        if r < rows:
+            a = row_psds(force_spectrum, accel_spectrum, states, r, k, bins, steps, centre, left, right, inv_mass,
+                         psd_scale)
+            sums, squares = add_deviation(a, shift, r, not_finite, sums, squares)
+        count = wp.float64(rows)
+        zero = wp.float64(0.0)
+        force_moments[k] = wp.vec2d(shift[0] + sums[0] / count, wp.max(squares[0] - sums[0] * sums[0] / count, zero))
+        accel_moments[k] = wp.vec2d(shift[1] + sums[1] / count, wp.max(squares[1] - sums[1] * sums[1] / count, zero))
+
+    return psd_moments
