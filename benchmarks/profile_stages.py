@@ -18,7 +18,7 @@ from mdroll.ensemble.fft import rfft_rows
 from mdroll.ensemble.force import launch_force, prepare_lines
 from mdroll.ensemble.lines import random_spectra, rough_lines
 from mdroll.ensemble.pipeline import H_BOUND_SIGMAS, _Totals
-from mdroll.ensemble.spectra import psd_moments_of_batch, series_sums
+from mdroll.ensemble.spectra import psd_moments_of_batch, series_sums, to_host
 from mdroll.provenance import environment
 
 
@@ -58,7 +58,8 @@ def main() -> None:
 
         def merge():
             totals = _Totals(steps=prepared.steps)
-            totals.add(len(idx), moments[0], moments[1], sums, p.F_N)
+            totals.add_moments(len(idx), moments[0], moments[1])
+            totals.add_sums(to_host(sums), p.F_N)
 
         clock("merge into the running moments", merge)
     record = {"environment": environment(device), "algorithm": args.algorithm, "times_s": times}

@@ -7,6 +7,7 @@ CuPy is installed.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 
 import numpy as np
@@ -132,6 +133,12 @@ def cupy_stream(device: str):
     if hasattr(cupy.cuda.Stream, "from_external") and hasattr(stream, "__cuda_stream__"):
         return cupy.cuda.Stream.from_external(stream)
     return cupy.cuda.ExternalStream(stream.cuda_stream)
+
+
+def queue_on(device: str):
+    """The context in which CuPy work for ``device`` joins Warp's stream there, in order with
+    the kernels (a no-op on the CPU, where NumPy runs at once)."""
+    return cupy_stream(device) if is_cuda(device) else contextlib.nullcontext()
 
 
 def synchronize(device: str) -> None:

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..devices import is_cuda, resolve_device, to_warp, warp
+from ..devices import is_cuda, queue_on, resolve_device, to_warp, warp
 from ..params import ParameterError, Params
 from .force import ALGORITHMS, BOUNDARIES, DEFAULT_LEAF_SIZE, check_choice, launch_force, prepare_lines
 from .lines import check_seed, realization_indices, rough_lines
@@ -271,20 +271,23 @@ def run_ensemble(
         sums = stage("response", lambda: series_sums(force, params, device, decoupled))
         force_moments, accel_moments, psd_not_finite = stage(
             "spectra", lambda: psd_moments_of_batch(force, accel, sums, params, device, window))
-        # the batch's one wait: its checks and totals need the sums and flags on the host
+        with queue_on(device):
+            stage("spectra", lambda: totals.add_moments(len(idx), force_moments, accel_moments))
+        # the batch's one wait: its checks and force sums need the sums and flags on the host (a
+        # failed check ends the run: the moments just merged are never seen or saved)
         host_sums, psd_bad = to_host(sums), to_host(psd_not_finite)
         stage.settle()
         _raise_on_rows(host_sums[:, NOT_FINITE] > 0, "force", "force" if decoupled else "response", idx)
         _raise_on_rows(psd_bad != 0, "force or acceleration PSD", "spectra", idx)
-        stage("spectra", lambda: totals.add(len(idx), force_moments, accel_moments, host_sums, params.F_N))
+        totals.add_sums(host_sums, params.F_N)
         if checkpoint is not None:
-            stage.settle()
             totals.save(checkpoint, key)
         bar.update(len(idx))
         del lines, prepared, force, accel
     bar.close()
 
-    q, omega, force_psd, force_psd_stderr, accel_psd, accel_psd_stderr = totals.spectra_on_host(params)
+    with queue_on(device):
+        q, omega, force_psd, force_psd_stderr, accel_psd, accel_psd_stderr = totals.spectra_on_host(params)
     stage.settle()
     n = len(indices)
     return EnsembleResult(
@@ -350,9 +353,9 @@ class _Totals:
     lost: int = 0
     timings: dict = field(default_factory=lambda: dict.fromkeys(STAGES, 0.0))
 
-    def add(self, rows: int, force_moments, accel_moments, sums: np.ndarray, F_N: float) -> None:
-        """Merge a batch of ``rows`` realizations: PSD moments from :func:`psd_moments_of_batch`,
-        force sums from :func:`series_sums` (deviations from ``F_N``, N)."""
+    def add_moments(self, rows: int, force_moments, accel_moments) -> None:
+        """Merge a batch's PSD moments (:func:`psd_moments_of_batch`) of ``rows`` realizations,
+        where they are (queued on the device: nothing waits)."""
         xp = array_module(force_moments)
         if self.force is None:
             bins = force_moments.shape[0]
@@ -362,24 +365,30 @@ class _Totals:
             self.accel.move_to(xp)
         self.force.add_moments(rows, force_moments)
         self.accel.add_moments(rows, accel_moments)
+
+    def add_sums(self, sums: np.ndarray, F_N: float) -> None:
+        """Add a batch's force sums (host rows of :func:`series_sums`: deviations from ``F_N``,
+        N) and count its realizations done."""
         mean_deviation = sums[:, SUM_DEVIATION] / self.steps
         variance = np.maximum(sums[:, SUM_SQUARES] / self.steps - mean_deviation**2, 0.0)
         self.force_mean_sum += float(np.sum(F_N + mean_deviation))
         self.force_rms_sum += float(np.sum(np.sqrt(variance)))
         self.lost += int(sums[:, LOST].sum())
-        self.done += rows
+        self.done += sums.shape[0]
 
     def spectra_on_host(self, params: Params) -> tuple[np.ndarray, ...]:
         """``(q, omega, force mean, its stderr, accel mean, its stderr)`` per bin (rad/m, rad/s,
         N^2 m, N^2 m, (m/s^2)^2 m, (m/s^2)^2 m), computed where the moments live and brought to
-        the host in one copy (six separate copies and host arithmetic on 5e5 bins took ~10 ms
-        of a 30 ms thesis-scale run on an H200; benchmarks/results/host_probe_H200.json)."""
+        the host in one copy, into page-locked memory on CUDA (the rows are views of it): six
+        separate copies and host arithmetic on 5e5 bins took ~10 ms of a 30 ms thesis-scale run
+        on an H200 (benchmarks/results/host_probe_H200.json), one copy into pageable memory ~3
+        (overhead_probe_H200_v7.json)."""
         force_mean, force_stderr = self.force.mean_and_stderr()
         accel_mean, accel_stderr = self.accel.mean_and_stderr()
         xp = array_module(force_mean)
         q = wavenumbers(self.steps, params.dx, xp)
-        rows = to_host(xp.stack([q, q * params.v0, force_mean, force_stderr, accel_mean, accel_stderr]))
-        return tuple(rows)
+        return tuple(to_host(xp.stack([q, q * params.v0, force_mean, force_stderr, accel_mean, accel_stderr]),
+                             page_locked=True))
 
     def save(self, path, key: dict) -> None:
         """Write the totals and the run's identity ``key`` to ``path`` atomically."""

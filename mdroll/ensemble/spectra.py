@@ -62,10 +62,18 @@ def array_rows(array, device: str):
     return array.numpy() if hasattr(array, "numpy") else np.asarray(array)
 
 
-def to_host(array) -> np.ndarray:
-    """A NumPy array from a NumPy, CuPy or Warp array."""
+def to_host(array, page_locked: bool = False) -> np.ndarray:
+    """A NumPy array from a NumPy, CuPy or Warp array. ``page_locked``: a CuPy array lands in
+    page-locked (pinned) host memory from CuPy's pool, which the device writes at full link
+    speed; the returned array keeps that memory until it is freed."""
     if hasattr(array, "get"):
-        return array.get()
+        if not page_locked:
+            return array.get()
+        import cupy
+
+        memory = cupy.cuda.alloc_pinned_memory(array.nbytes)
+        out = np.frombuffer(memory, array.dtype, array.size).reshape(array.shape)
+        return array.get(out=out)
     if hasattr(array, "numpy"):
         return array.numpy()
     return np.asarray(array)
