@@ -51,7 +51,7 @@ def main():
         "line_scales": ms(lambda: wp.launch(line_scales, dim=ROWS, inputs=[rows, wp.uint64(5), amplitudes, n // 2, total,
                                                                           P.h0, scales, keys], device=DEVICE)),
         "empty spectrum (2.5 GB)": ms(lambda: wp.empty((ROWS, bins), dtype=wp.vec2d, device=DEVICE)),
-        "random_phase_spectrum": ms(lambda: wp.launch(random_phase_spectrum, dim=spectrum.shape,
+        "random_phase_spectrum": ms(lambda: wp.launch(random_phase_spectrum, dim=(ROWS, (bins + 1) // 2),
                                                       inputs=[keys, amplitudes, n // 2, scales, spectrum],
                                                       device=DEVICE)),
         "random_spectra (whole)": ms(lambda: random_spectra(P, 5, ROWS, DEVICE)),

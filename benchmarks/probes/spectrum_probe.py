@@ -50,7 +50,7 @@ def main():
     cases = {
         "mode_amplitudes": lambda: wp.launch(mode_amplitudes, dim=bins, inputs=[k_first, k_last, -(p.H + 0.5), amplitudes], device=device),
         "line_scales": lambda: wp.launch(line_scales, dim=300, inputs=[rows, wp.uint64(0), amplitudes, n // 2, 1.0, 1.0, scales, keys], device=device),
-        "random_phase_spectrum": lambda: wp.launch(random_phase_spectrum, dim=(300, bins), inputs=[keys, amplitudes, n // 2, scales, spectrum], device=device),
+        "random_phase_spectrum": lambda: wp.launch(random_phase_spectrum, dim=(300, (bins + 1) // 2), inputs=[keys, amplitudes, n // 2, scales, spectrum], device=device),
         "no trigonometry": lambda: wp.launch(no_trig, dim=(300, bins), inputs=[rows, wp.uint64(0), amplitudes, spectrum], device=device),
         "no hash": lambda: wp.launch(no_hash, dim=(300, bins), inputs=[amplitudes, spectrum], device=device),
         "write only": lambda: wp.launch(write_only, dim=(300, bins), inputs=[amplitudes, spectrum], device=device),

@@ -9,7 +9,11 @@ variant must give the same bits as the kernel it would replace; times are the ke
 Its runs: results/stage_probe_H200.json against the library's kernels of then (two hashes per
 mode, one load in flight per thread in the summary pass, one row at a time in the moments);
 _v2 after the summary pass took the four-load form and the moments the two-row form (still
-one kernel for every mode); _v3 with the keyed spectrum and one moments kernel per mode.
+one kernel for every mode); _v3 with the keyed spectrum and one moments kernel per mode; _v4
+with eight loads in flight in the summary pass, four rows at a time in the moments, and a
+variant of the spectrum kernel making two modes a thread (since then the library's form). Its
+"random_spectra (whole function)" includes fresh device allocations: this probe does not set
+the memory pool's release threshold that every run sets (mdroll.devices).
 """
 import argparse
 import json
@@ -24,26 +28,13 @@ from mdroll.devices import to_warp
 from mdroll.ensemble.lines import random_spectra
 from mdroll.kernels import lines as line_kernels
 from mdroll.kernels import spectra as kernels
-from mdroll.kernels.spectra import (FINAL_V, FINAL_Y, HANN_NORM, LOST, NOT_FINITE, SUM_DEVIATION, SUM_SQUARES,
-                                    bin_value, response_bin)
+from mdroll.kernels.spectra import (FINAL_V, FINAL_Y, LOST, NOT_FINITE, SUM_DEVIATION, SUM_SQUARES, bin_value,
+                                    response_bin, summary_add)
 
 DEVICE = "cuda:0"
 P = Params(L=5.24288)
 ROWS = 300
 STEPS = 1_036_800
-
-
-@wp.func
-def summary_add(u: wp.float64, weight: wp.vec2d, F_N: wp.float64, sums: wp.vec4d, state: wp.vec2d):
-    if not wp.isfinite(u):
-        sums = sums + wp.vec4d(wp.float64(0.0), wp.float64(0.0), wp.float64(0.0), wp.float64(1.0))
-    else:
-        lost = wp.float64(0.0)
-        if u <= -F_N:
-            lost = wp.float64(1.0)
-        sums = sums + wp.vec4d(u, u * u, lost, wp.float64(0.0))
-        state = state + u * weight
-    return sums, state
 
 
 @wp.kernel
@@ -167,7 +158,7 @@ def main():
     keys = wp.empty(ROWS, dtype=wp.uint64, device=DEVICE)
     wp.launch(line_kernels.line_scales, dim=ROWS, inputs=[rows, wp.uint64(5), amplitudes, nyquist, wp.ones(1, dtype=wp.float64, device=DEVICE),
               1.0, wp.empty(ROWS, dtype=wp.float64, device=DEVICE), keys], device=DEVICE)
-    record["random_phase_spectrum (keyed)"] = kernel_ms(wp.launch(line_kernels.random_phase_spectrum, dim=spectrum.shape,
+    record["random_phase_spectrum (keyed)"] = kernel_ms(wp.launch(line_kernels.random_phase_spectrum, dim=(ROWS, (bins + 1) // 2),
         inputs=[keys, amplitudes, nyquist, scales, spectrum], device=DEVICE, record_cmd=True))
     del spectrum
     # summary pass

@@ -101,6 +101,6 @@ def random_spectra(params: Params, seed: int, realizations, device: str):
     wp.launch(line_scales, dim=indices.size,
               inputs=[rows, wp.uint64(seed), amplitudes, nyquist, sum_of_squares, params.h0, scales, keys], device=device)
     spectrum = wp.empty((indices.size, bins), dtype=wp.vec2d, device=device)
-    wp.launch(random_phase_spectrum, dim=spectrum.shape,
+    wp.launch(random_phase_spectrum, dim=(indices.size, (bins + 1) // 2),
               inputs=[keys, amplitudes, nyquist, scales, spectrum], device=device)
     return spectrum

@@ -15,6 +15,9 @@ HANN_NORM = wp.constant(wp.float64(1.632993161855452))
 #: Threads sharing one series in :func:`series_summary` on CUDA; their partial sums are added
 #: in a fixed order, so the result does not depend on scheduling.
 SUMMARY_THREADS = 1024
+#: Steps each thread of :func:`series_summary` loads before adding them.
+SUMMARY_LOADS = wp.constant(8)
+summary_values = wp.types.vector(length=8, dtype=wp.float64)
 #: Columns of :func:`series_summary`'s sums, read by :func:`psd_moments_kernel`'s kernels and the host.
 SUM_DEVIATION = wp.constant(0)
 SUM_SQUARES = wp.constant(1)
@@ -95,36 +98,30 @@ def series_summary(
     the FFT, and this pass only reads. ``u <= -F_N`` is contact lost: it holds for every F <= 0
     (rounding is monotonic) and for no F above ulp(F_N)/2 (3.6e-12 N at 40 kN).
 
-    Each thread loads four steps before it adds them (in order, so the sums are those of one
-    step at a time): with one load in flight per thread the pass ran at 1.5 TB/s on an H200,
-    with four 2.5 TB/s (benchmarks/results/stage_probe_H200.json).
+    Each thread loads ``SUMMARY_LOADS`` steps before it adds them (in order, so the sums are
+    those of one step at a time): with one load in flight per thread the pass ran at 1.5 TB/s
+    on an H200, with four at 2.6 TB/s (benchmarks/results/stage_probe_H200.json, _v3).
     """
     r, t = wp.tid()
     sums = wp.vec4d()
     state = wp.vec2d()
-    zero = wp.vec2d()
     s = t
-    while s + 3 * threads < steps:
-        u0 = deviation[r, s]
-        u1 = deviation[r, s + threads]
-        u2 = deviation[r, s + 2 * threads]
-        u3 = deviation[r, s + 3 * threads]
-        w0 = zero
-        w1 = zero
-        w2 = zero
-        w3 = zero
+    while s + (SUMMARY_LOADS - 1) * threads < steps:
+        u = summary_values()
+        weight_y = summary_values()
+        weight_v = summary_values()
+        for i in range(SUMMARY_LOADS):
+            u[i] = deviation[r, s + i * threads]
         if with_state == 1:
-            w0 = weights[steps - 1 - s]
-            w1 = weights[steps - 1 - s - threads]
-            w2 = weights[steps - 1 - s - 2 * threads]
-            w3 = weights[steps - 1 - s - 3 * threads]
-        sums, state = summary_add(u0, w0, F_N, sums, state)
-        sums, state = summary_add(u1, w1, F_N, sums, state)
-        sums, state = summary_add(u2, w2, F_N, sums, state)
-        sums, state = summary_add(u3, w3, F_N, sums, state)
-        s += 4 * threads
+            for i in range(SUMMARY_LOADS):
+                w = weights[steps - 1 - s - i * threads]
+                weight_y[i] = w[0]
+                weight_v[i] = w[1]
+        for i in range(SUMMARY_LOADS):
+            sums, state = summary_add(u[i], wp.vec2d(weight_y[i], weight_v[i]), F_N, sums, state)
+        s += SUMMARY_LOADS * threads
     while s < steps:
-        w = zero
+        w = wp.vec2d()
         if with_state == 1:
             w = weights[steps - 1 - s]
         sums, state = summary_add(deviation[r, s], w, F_N, sums, state)
@@ -249,8 +246,8 @@ def psd_moments_kernel(decoupled: bool, window: bool) -> wp.Kernel:
     PSD sets ``not_finite[r]``.
 
     Per bin, the sums are of deviations from the first row's PSDs: the mean and M2 without a
-    division per row, and exact where every row has the same PSD. Rows go two at a time, both
-    loaded before either is added (in order, so the sums are the same).
+    division per row, and exact where every row has the same PSD. Rows go four at a time, all
+    loaded before any is added (in order, so the sums are the same).
     """
 
     @wp.func
@@ -320,18 +317,25 @@ def psd_moments_kernel(decoupled: bool, window: bool) -> wp.Kernel:
         sums = wp.vec2d()
         squares = wp.vec2d()
         r = int(1)
-        while r + 1 < rows:
+        while r + 3 < rows:
             a = row_psds(force_spectrum, accel_spectrum, states, r, k, bins, steps, centre, left, right, inv_mass,
                          psd_scale)
             b = row_psds(force_spectrum, accel_spectrum, states, r + 1, k, bins, steps, centre, left, right, inv_mass,
                          psd_scale)
+            c = row_psds(force_spectrum, accel_spectrum, states, r + 2, k, bins, steps, centre, left, right, inv_mass,
+                         psd_scale)
+            e = row_psds(force_spectrum, accel_spectrum, states, r + 3, k, bins, steps, centre, left, right, inv_mass,
+                         psd_scale)
             sums, squares = add_deviation(a, shift, r, not_finite, sums, squares)
             sums, squares = add_deviation(b, shift, r + 1, not_finite, sums, squares)
-            r += 2
-        if r < rows:
+            sums, squares = add_deviation(c, shift, r + 2, not_finite, sums, squares)
+            sums, squares = add_deviation(e, shift, r + 3, not_finite, sums, squares)
+            r += 4
+        while r < rows:
             a = row_psds(force_spectrum, accel_spectrum, states, r, k, bins, steps, centre, left, right, inv_mass,
                          psd_scale)
             sums, squares = add_deviation(a, shift, r, not_finite, sums, squares)
+            r += 1
         count = wp.float64(rows)
         zero = wp.float64(0.0)
         force_moments[k] = wp.vec2d(shift[0] + sums[0] / count, wp.max(squares[0] - sums[0] * sums[0] / count, zero))
