@@ -56,6 +56,24 @@ def test_same_lines_whatever_the_batch_split(device):
     assert np.max(np.abs(other_seed[0] - whole[0])) > 0.1 * P.h0
 
 
+@pytest.mark.parametrize("n", [16, 15, 4096])
+def test_inverse_fft_is_numpy_times_n(device, n):
+    """irfft_rows is the unnormalized inverse (physics.md section 3's sum, no 1/n) on every
+    device, for even and odd n; on CUDA it may overwrite the spectrum, so each call gets a copy."""
+    from mdroll.devices import to_warp, warp
+    from mdroll.ensemble.fft import irfft_rows
+
+    rng = np.random.default_rng(n)
+    spectrum = rng.standard_normal((3, n // 2 + 1)) + 1j * rng.standard_normal((3, n // 2 + 1))
+    spectrum[:, 0] = spectrum[:, 0].real  # a real line's mean and Nyquist modes are real
+    if n % 2 == 0:
+        spectrum[:, -1] = spectrum[:, -1].real
+    pairs = np.ascontiguousarray(spectrum.view(np.float64).reshape(3, -1, 2))
+    lines = to_numpy(irfft_rows(to_warp(pairs, device, dtype=warp().vec2d), n, device))
+    expected = n * np.fft.irfft(spectrum, n=n, axis=-1)
+    assert np.max(np.abs(lines - expected)) <= 1e-12 * np.max(np.abs(expected))
+
+
 def test_cpu_and_cuda_agree(cuda_devices):
     if not cuda_devices:
         pytest.skip("no CUDA device")

@@ -68,6 +68,20 @@ def test_coupled_windowed_spectra_are_those_of_the_coupled_series(device):
     assert result.force_rms == pytest.approx(force.std(axis=1).mean(), rel=1e-10)
 
 
+def test_stage_times_cover_every_stage_within_the_run(device):
+    """Every stage reports a positive time (device time between CUDA events on CUDA, wall time
+    on the CPU), and together they fit inside the call's wall time."""
+    import time
+
+    run_ensemble(P, seed=2, device=device, progress=False)  # first use: compilation, plans
+    t0 = time.perf_counter()
+    result = run_ensemble(P, seed=2, device=device, progress=False, batch=2)
+    wall = time.perf_counter() - t0
+    assert set(result.timings) == {"generate", "build", "force", "response", "spectra"}
+    assert all(t > 0 for t in result.timings.values()), result.timings
+    assert sum(result.timings.values()) <= wall
+
+
 def test_same_result_for_any_batch_size(device):
     a = run_ensemble(P, seed=5, device=device, progress=False, batch=1)
     b = run_ensemble(P, seed=5, device=device, progress=False, batch=5)
