@@ -28,8 +28,7 @@ from mdroll.devices import to_warp
 from mdroll.ensemble.lines import random_spectra
 from mdroll.kernels import lines as line_kernels
 from mdroll.kernels import spectra as kernels
-from mdroll.kernels.spectra import (FINAL_V, FINAL_Y, LOST, NOT_FINITE, SUM_DEVIATION, SUM_SQUARES, bin_value,
-                                    response_bin, summary_add)
+from mdroll.kernels.spectra import FINAL_V, FINAL_Y, bin_value, response_bin, summary_add
 
 DEVICE = "cuda:0"
 P = Params(L=5.24288)
@@ -65,18 +64,7 @@ def series_summary_unrolled(deviation: wp.array2d(dtype=wp.float64), steps: int,
         sums, state = summary_add(u2, w2, F_N, sums, state)
         sums, state = summary_add(u3, w3, F_N, sums, state)
         s += 4 * threads
-    while s < steps:
-        w = zero
-        if with_state == 1:
-            w = weights[steps - 1 - s]
-        sums, state = summary_add(deviation[r, s], w, F_N, sums, state)
-        s += threads
-    partial[r, t, SUM_DEVIATION] = sums[0]
-    partial[r, t, SUM_SQUARES] = sums[1]
-    partial[r, t, LOST] = sums[2]
-    partial[r, t, NOT_FINITE] = sums[3]
-    partial[r, t, FINAL_Y] = -inv_mass * state[0]
-    partial[r, t, FINAL_V] = -inv_mass * state[1]
+    kernels.finish_summary(deviation, weights, with_state, r, t, s, steps, threads, F_N, inv_mass, sums, state, partial)
 
 
 @wp.func

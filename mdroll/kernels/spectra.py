@@ -17,7 +17,7 @@ HANN_NORM = wp.constant(wp.float64(1.632993161855452))
 SUMMARY_THREADS = 1024
 #: Steps each thread of :func:`series_summary` loads before adding them.
 SUMMARY_LOADS = wp.constant(8)
-summary_values = wp.types.vector(length=8, dtype=wp.float64)
+summary_values = wp.types.vector(length=SUMMARY_LOADS, dtype=wp.float64)
 #: Columns of :func:`series_summary`'s sums, read by :func:`psd_moments_kernel`'s kernels and the host.
 SUM_DEVIATION = wp.constant(0)
 SUM_SQUARES = wp.constant(1)
@@ -73,6 +73,38 @@ def summary_add(u: wp.float64, weight: wp.vec2d, F_N: wp.float64, sums: wp.vec4d
     return sums, state
 
 
+@wp.func
+def finish_summary(
+    deviation: wp.array2d(dtype=wp.float64),
+    weights: wp.array(dtype=wp.vec2d),
+    with_state: int,
+    r: int,
+    t: int,
+    s: int,
+    steps: int,
+    threads: int,
+    F_N: wp.float64,
+    inv_mass: wp.float64,
+    sums: wp.vec4d,
+    state: wp.vec2d,
+    partial: wp.array3d(dtype=wp.float64),
+):
+    """The end of :func:`series_summary` for thread t of row r: steps s, s + threads, ... below
+    ``steps`` added one at a time, then the thread's partial sums written."""
+    while s < steps:
+        w = wp.vec2d()
+        if with_state == 1:
+            w = weights[steps - 1 - s]
+        sums, state = summary_add(deviation[r, s], w, F_N, sums, state)
+        s += threads
+    partial[r, t, SUM_DEVIATION] = sums[0]
+    partial[r, t, SUM_SQUARES] = sums[1]
+    partial[r, t, LOST] = sums[2]
+    partial[r, t, NOT_FINITE] = sums[3]
+    partial[r, t, FINAL_Y] = -inv_mass * state[0]
+    partial[r, t, FINAL_V] = -inv_mass * state[1]
+
+
 @wp.kernel
 def series_summary(
     deviation: wp.array2d(dtype=wp.float64),
@@ -99,8 +131,9 @@ def series_summary(
     (rounding is monotonic) and for no F above ulp(F_N)/2 (3.6e-12 N at 40 kN).
 
     Each thread loads ``SUMMARY_LOADS`` steps before it adds them (in order, so the sums are
-    those of one step at a time): with one load in flight per thread the pass ran at 1.5 TB/s
-    on an H200, with four at 2.6 TB/s (benchmarks/results/stage_probe_H200.json, _v3).
+    those of one step at a time): with one load in flight per thread the pass read 1.5 TB/s on
+    an H200, with four 2.6 TB/s, with eight 2.7 TB/s (benchmarks/results/stage_probe_H200.json,
+    _v3, _v4).
     """
     r, t = wp.tid()
     sums = wp.vec4d()
@@ -120,18 +153,7 @@ def series_summary(
         for i in range(SUMMARY_LOADS):
             sums, state = summary_add(u[i], wp.vec2d(weight_y[i], weight_v[i]), F_N, sums, state)
         s += SUMMARY_LOADS * threads
-    while s < steps:
-        w = wp.vec2d()
-        if with_state == 1:
-            w = weights[steps - 1 - s]
-        sums, state = summary_add(deviation[r, s], w, F_N, sums, state)
-        s += threads
-    partial[r, t, SUM_DEVIATION] = sums[0]
-    partial[r, t, SUM_SQUARES] = sums[1]
-    partial[r, t, LOST] = sums[2]
-    partial[r, t, NOT_FINITE] = sums[3]
-    partial[r, t, FINAL_Y] = -inv_mass * state[0]
-    partial[r, t, FINAL_V] = -inv_mass * state[1]
+    finish_summary(deviation, weights, with_state, r, t, s, steps, threads, F_N, inv_mass, sums, state, partial)
 
 
 @wp.kernel
@@ -231,8 +253,9 @@ def psd_moments_kernel(decoupled: bool, window: bool) -> wp.Kernel:
     """The PSD-moments kernel for one mode: ``decoupled`` (the acceleration's spectrum from the
     force's) or coupled (from its own), with or without the Hann ``window``; each pair is
     compiled apart (``wp.static``), so a kernel carries neither branch nor registers of the
-    others (1.50 -> 1.20 ms at 300 x 518,401 bins on an H200, decoupled without window:
-    benchmarks/results/stage_probe_H200_v2.json).
+    others (decoupled without window, 300 x 518,401 bins on an H200: 1.50 ms for one kernel of
+    every mode, 1.19 ms for its own with two rows at a time, 1.10 ms with four;
+    benchmarks/results/stage_probe_H200_v2.json, _v3, _v4).
 
     Launched over the bins k, it writes per bin the mean and M2 (sum of squared deviations)
     over the rows of the two-sided PSDs ``C(q_k) = psd_scale |B_k|^2`` of the force (N^2 m) and
