@@ -11,7 +11,8 @@ mode, one load in flight per thread in the summary pass, one row at a time in th
 _v2 after the summary pass took the four-load form and the moments the two-row form (still
 one kernel for every mode); _v3 with the keyed spectrum and one moments kernel per mode; _v4
 with eight loads in flight in the summary pass, four rows at a time in the moments, and a
-variant of the spectrum kernel making two modes a thread (since then the library's form). Its
+variant of the spectrum kernel making two modes a thread (since then the library's form); _v5
+after the summary pass's tail moved into a shared wp.func (finish_summary; 0.904 ms, unchanged). Its
 "random_spectra (whole function)" includes fresh device allocations: this probe does not set
 the memory pool's release threshold that every run sets (mdroll.devices).
 """
