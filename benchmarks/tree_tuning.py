@@ -17,7 +17,7 @@ from mdroll.devices import resolve_device
 from mdroll.provenance import environment
 
 LEAF_SIZES = (8, 16, 32)
-BAND_LIMITS = (0, 64, 10**6)  # 0: always traverse; 10^6: always sum the band directly
+BAND_LIMITS = (0, 1024, 2048, 4096, 10**6)  # springs a side, row-wide; 0: always traverse, 10^6: always sum directly
 REFINEMENT_LEAF_SIZES = (8, 32)
 
 
@@ -26,18 +26,21 @@ def main() -> None:
     parser.add_argument("--device", default="cuda:0")
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--out", default="tree_tuning.json")
+    parser.add_argument("--leaf-sizes", type=int, nargs="+", default=LEAF_SIZES, help="thesis-scale leaf sizes")
+    parser.add_argument("--band-limits", type=int, nargs="+", default=BAND_LIMITS, help="band limits (springs)")
+    parser.add_argument("--refinement-leaf-sizes", type=int, nargs="+", default=REFINEMENT_LEAF_SIZES)
     args = parser.parse_args()
     device = resolve_device(args.device)
     thesis = Params(L=5.24288, n_real=300)
     record = {"environment": environment(device), "thesis": [], "refinement": [], "fits": {}}
-    for leaf_size in LEAF_SIZES:
-        for band_limit in BAND_LIMITS:
+    for leaf_size in args.leaf_sizes:
+        for band_limit in args.band_limits:
             point = force_time(thesis, "tree", thesis.n_real, device, args.repeats, "open", leaf_size, band_limit)
             record["thesis"].append(point)
             print(f"thesis leaf {leaf_size:>2} band_limit {band_limit:>7}: {point['force_s'] * 1e3:7.2f} ms", flush=True)
     sizes, realizations = STUDIES["full"].sweeps(device)["refinement"]
-    for leaf_size in REFINEMENT_LEAF_SIZES:
-        for band_limit in BAND_LIMITS:
+    for leaf_size in args.refinement_leaf_sizes:
+        for band_limit in args.band_limits:
             points = [force_time(p, "tree", realizations, device, args.repeats, "periodic", leaf_size, band_limit)
                       for p in sizes]
             record["refinement"] += points

@@ -22,12 +22,12 @@ BOUNDARIES = ("open", "periodic")
 #: Springs per tree leaf: 32 was fastest at thesis scale on the H200 (14.6 ms vs 15.8 for 8;
 #: benchmarks/results/tree_tuning_H200_v4b.json).
 DEFAULT_LEAF_SIZE = 32
-#: Band width (springs) above which the tree kernel's main path descends the tree instead of
-#: summing the band directly (kernels/tree.py). By default it never descends: on the H200 the
-#: direct band sum was faster at every refinement size measured (2^17..2^22 springs over
-#: 0.25 m; 89 vs 165 ms at 2^22), and the descent's better exponent (1.20 vs 1.47) would only
-#: pay beyond ~2^25, past the closed forms' range (MAX_CLOSED_FORM_OFFSET).
-DEFAULT_BAND_LIMIT = 2**30
+#: Band width (springs a side, from a row's root bounds) above which the tree kernel's main path
+#: descends the tree instead of summing the narrowed bands directly (kernels/tree.py). On an
+#: H100 (64 lines over 0.25 m, benchmarks/results/tree_tuning_H100_v8.json) the direct sum was
+#: faster up to 2^21 springs (row band ~1600: 15.7 vs 17.2 ms) and the descent beyond (2^22,
+#: ~3200: 35.3 vs 53.3 ms); at thesis scale (~40) the bands are always summed directly.
+DEFAULT_BAND_LIMIT = 2048
 
 
 def check_choice(name: str, value, allowed) -> str:
@@ -358,8 +358,9 @@ def contact_force(
     leaf_size : int
         Springs per tree leaf (tree only).
     band_limit : int
-        Tree only: bands of at most this many springs are summed directly, wider ones by a
-        traversal shared by 8 steps (a tuning knob; the result is the same to rounding).
+        Tree only: in a line whose band of possible contact (root bounds, one side) holds at
+        most this many springs the bands are summed directly, in wider ones by a traversal
+        shared by 8 steps, O(log n) a step (a tuning knob; the result is the same to rounding).
     h_max : float, optional
         Height bound (m) that places the open-boundary wheel (default: max of ``lines``).
 

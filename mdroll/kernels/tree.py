@@ -20,12 +20,16 @@ the band, as
 On the GPU the per-step traversal diverges across a warp, so the kernel's main path works on 8
 consecutive steps per thread instead: two range queries on the tree give (min h, max h) over
 the springs that the 8 steps' right and left bands can reach; from those local bounds each side
-gets its own, narrower core (closed form per step) and window. A narrow band (at most
-``band_limit`` springs) is summed by the same register-blocked loop as the direct sum; a wide
-one, as under refinement, where the band grows as 1/dx, is traversed once for the 8 steps
-together (``band_descent``), which keeps the work per step near O(log n). Threads whose
-springs are not all on the line (the ends of an open line) take the per-step traversal. All
-paths are exact.
+gets its own, narrower core (closed form per step) and window. In a row whose band (root
+bounds: window less certain core, one side) holds at most ``band_limit`` springs, the narrowed
+bands are summed by the same register-blocked loop as the direct sum; in a wider one, as under
+refinement, where the band grows as 1/dx, each is traversed once for the 8 steps together
+(``band_descent``), which keeps the work per step near O(log n). The choice is per row, so the
+threads of a warp take the same path. Threads whose springs are not all on the line (the ends
+of an open line) take the per-step traversal. All paths are exact.
+
+The main kernel is compiled for at most ``TREE_MAX_REGISTERS`` registers a thread: left free,
+the compiler took 255, which leaves 8 warps a streaming multiprocessor.
 
 Stack bound: a band starts with at most 2 nodes on the stack, and each descent pops one node and
 pushes two, so the stack never holds more than ``2 + start level <= 2 + top level`` entries; the
@@ -36,6 +40,8 @@ import warp as wp
 
 from .common import (
     BLOCK,
+    BLOCK_HEIGHTS,
+    block_heights,
     block_values,
     blocked_spring_sum,
     full_contact_sum,
@@ -47,10 +53,14 @@ from .common import (
     tree_stack,
 )
 
-#: One bit per step of a thread's 8 (band_descent's step masks).
-ALL_STEPS = wp.constant(255)
 #: Nodes are pushed as ``(index << LEVEL_BITS) | level`` (levels < 32).
 LEVEL_BITS = wp.constant(5)
+#: Register cap of the main kernel: 128 lets 16 warps share a streaming multiprocessor. On an
+#: H100, thesis scale took 9.8 ms against 14.2 uncapped (255) or 160, and 11.7 at 96
+#: (benchmarks/NOTES.md, v8).
+TREE_MAX_REGISTERS = 128
+#: A lifted height (m) below every indenter depth: a masked spring's displacement is negative.
+NO_CONTACT = wp.constant(wp.float64(-1.0e300))
 LEVEL_MASK = wp.constant(31)
 
 
@@ -213,6 +223,33 @@ def range_bounds(
 
 
 @wp.func
+def indenter_depths(m0: int, curvature: wp.float64) -> block_heights:
+    """``curvature m^2`` (m) for the 15 offsets ``m = m0 .. m0 + 14``: the indenter depths that the
+    64 (spring, step) pairs of a block of 8 springs and 8 steps need (eq 7)."""
+    depth = block_heights()
+    m = wp.float64(m0)
+    for t in range(BLOCK_HEIGHTS):
+        depth[t] = curvature * m * m
+        m += wp.float64(1.0)
+    return depth
+
+
+@wp.func
+def next_node(index: int, level: int, size: int, top_level: int, hi: int) -> tuple[int, int, int]:
+    """The node after ``(index, level)`` (``size`` springs) in a left-to-right walk of a band that
+    ends at spring hi: the right neighbour, lifted to its largest ancestor that starts at the same
+    spring and still ends within the band. Returns (index, level, size)."""
+    next_index = index + 1
+    next_level = level
+    next_size = size
+    while (next_index & 1) == 0 and next_level < top_level and (next_index + 2) * next_size <= hi + 1:
+        next_index = next_index >> 1
+        next_level += 1
+        next_size *= 2
+    return next_index, next_level, next_size
+
+
+@wp.func
 def band_descent(
     h: wp.array2d(dtype=wp.float64),
     prefix: wp.array2d(dtype=wp.float64),
@@ -228,83 +265,111 @@ def band_descent(
     curvature: wp.float64,
     acc: block_values,
 ) -> block_values:
-    """Add ``sum_{l=lo}^{hi} max(h_l + d - curvature (l - c - j)^2, 0)`` (m) to ``acc[j]`` for the
-    8 steps j = 0..7 (wheel at spring c + j) by one tree traversal shared by the 8 steps.
+    """Add ``sum_{l=lo}^{hi} max(h_l + d - curvature (l - c - k)^2, 0)`` (m) to ``acc[k]`` for the
+    8 steps k = 0..7 (wheel at spring c + k) by one tree walk shared by the 8 steps.
 
-    Each node is classified for every step as in :func:`band_sum`; a node that is full or empty
-    for all steps ends there (full steps by the closed form, whose sums of squares for the 8
-    shifted centres follow from one ``sum m^2`` and one ``sum m``:
-    ``sum (m - j)^2 = sum m^2 - 2 j sum m + j^2 count``, exact integers); a node ambiguous for
-    some step is split, and at a leaf its springs are summed for the ambiguous steps. The
-    springs a warp's threads visit stay few however fine dx is, unlike a direct sum of the band.
+    The walk goes left to right without a stack: at each node (clipped to the band) two tests
+    settle "in contact for all 8 steps" and "out of contact for all"; a node that is neither is
+    replaced by its left child, a settled one by its right neighbour lifted to the largest
+    ancestor that starts there (:func:`next_node`). Settled-full nodes only add to four running
+    totals, the spring count and the sums of h, m and m^2 (m = l - c), and the 8 closed forms
+    follow once at the end: ``sum (m - k)^2 = sum m^2 - 2 k sum m + k^2 count`` (eq 19-20, exact
+    integers). A leaf that stays mixed is summed spring by spring for the 8 steps (eq 10-12).
+
+    On the GPU the leaves' sums are the costly part, and a thread reaches its mixed leaves at its
+    own pace: the walk to the next mixed leaf is an inner loop, and the sum follows it in the
+    outer one, so a warp's threads sum their leaves together instead of each stalling the rest.
+    The nodes visited grow as the number of contact edges in the band times its depth, not as
+    the band's width.
 
     Requires that no wheel c .. c+7 lies in lo..hi (the caller's bands start past the core).
     """
     if lo > hi:
         return acc
-    stack, top = band_roots(lo, hi, leaf_size, top_level)
+    one = wp.float64(1.0)
+    two = wp.float64(2.0)
     zero = wp.float64(0.0)
-    while top > 0:
-        top -= 1
-        level, index, i, j = node_span(stack[top], leaf_size, lo, hi)
-        if i < j:
-            box = tree[r, level_offsets[level] + index]
-            # no wheel lies on the node, so over the node and the 8 steps the distance to the
-            # wheel is extreme at the ends: two tests settle "full for all" and "empty for all"
-            near = wp.min(wp.min(wp.abs(i - c), wp.abs(i - c - BLOCK + 1)),
-                          wp.min(wp.abs(j - 1 - c), wp.abs(j - c - BLOCK)))
-            far = wp.max(wp.max(wp.abs(i - c), wp.abs(i - c - BLOCK + 1)),
-                         wp.max(wp.abs(j - 1 - c), wp.abs(j - c - BLOCK)))
-            f_near = wp.float64(near)
-            f_far = wp.float64(far)
-            full = int(0)
-            ambiguous = int(0)
-            if curvature * f_far * f_far - d < box[0]:
-                full = ALL_STEPS
-            elif curvature * f_near * f_near - d <= box[1]:
-                ambiguous = ALL_STEPS
-                if level == 0:
-                    # a leaf: classify each step, as band_sum does for one
-                    ambiguous = int(0)
-                    p = wp.float64(i - c)
-                    q = wp.float64(j - 1 - c)
-                    for k in range(BLOCK):
-                        g_p = curvature * p * p - d
-                        g_q = curvature * q * q - d
-                        if wp.max(g_p, g_q) < box[0]:
-                            full = full | (1 << k)
-                        elif wp.min(g_p, g_q) <= box[1]:
-                            ambiguous = ambiguous | (1 << k)
-                        p -= wp.float64(1.0)
-                        q -= wp.float64(1.0)
-            if ambiguous != 0 and level > 0:
-                stack[top] = ((2 * index) << LEVEL_BITS) | (level - 1)
-                stack[top + 1] = ((2 * index + 1) << LEVEL_BITS) | (level - 1)
-                top += 2
+    # spring count and sums of h, m and m^2 (m = l - c), weighted 2 for settled-full nodes and 1
+    # for the whole blocks of mixed runs, which add sum |u| per step to ``absolute``
+    springs = wp.float64(0.0)
+    heights = wp.float64(0.0)
+    offsets = wp.float64(0.0)
+    squares = wp.float64(0.0)
+    absolute = block_values()
+    index = lo // leaf_size
+    level = int(0)
+    size = leaf_size
+    while index * size <= hi:
+        # walk to the next run of adjacent mixed leaves (or past the band)
+        run_start = int(-1)
+        run_end = int(-1)
+        walking = int(1)
+        while walking == 1 and index * size <= hi:
+            i = wp.max(index * size, lo)
+            j = wp.min(index * size + size, hi + 1)
+            settled = int(1)
+            if i < j:
+                box = tree[r, level_offsets[level] + index]
+                # no wheel lies on the node, so over the node and the 8 steps the distance to
+                # the wheel is extreme at the ends
+                near = wp.min(wp.min(wp.abs(i - c), wp.abs(i - c - BLOCK + 1)),
+                              wp.min(wp.abs(j - 1 - c), wp.abs(j - c - BLOCK)))
+                far = wp.max(wp.max(wp.abs(i - c), wp.abs(i - c - BLOCK + 1)),
+                             wp.max(wp.abs(j - 1 - c), wp.abs(j - c - BLOCK)))
+                f_near = wp.float64(near)
+                f_far = wp.float64(far)
+                if curvature * f_far * f_far - d < box[0]:
+                    springs += two * wp.float64(j - i)
+                    heights += two * (prefix[r, j] - prefix[r, i])
+                    offsets += two * sum_of_offsets(i - c, j - 1 - c)
+                    squares += two * sum_of_squares(i - c, j - 1 - c)
+                elif curvature * f_near * f_near - d <= box[1]:
+                    settled = 0
+            if settled == 0 and level > 0:
+                index = 2 * index
+                level -= 1
+                size = size >> 1
             else:
-                if full != 0:
-                    springs = wp.float64(j - i)
-                    base = (prefix[r, j] - prefix[r, i]) + springs * d
-                    square_sum = sum_of_squares(i - c, j - 1 - c)
-                    offset_sum = sum_of_offsets(i - c, j - 1 - c)
-                    shift = wp.float64(0.0)  # k as a float; wp.float64(k) would retype the unrolled k (Warp 1.19)
-                    for k in range(BLOCK):
-                        term = base - curvature * (square_sum - wp.float64(2.0) * shift * offset_sum + shift * shift * springs)
-                        if ((full >> k) & 1) == 1:
-                            acc[k] = acc[k] + term
-                        shift += wp.float64(1.0)
-                if ambiguous != 0:
-                    for l in range(i, j):
-                        h_l = h[r, l] + d
-                        m = wp.float64(l - c)
+                if settled == 0:
+                    if run_end < 0:
+                        run_start = i
+                    run_end = j
+                elif run_end >= 0:
+                    walking = 0
+                index, level, size = next_node(index, level, size, top_level, hi)
+        if run_end >= 0:
+            # whole blocks of 8 springs by max(u, 0) = (u + |u|) / 2, sum u in the totals; the
+            # last, partial block by max(u, 0) with the missing springs out of reach
+            whole_end = run_start + ((run_end - run_start) // BLOCK) * BLOCK
+            springs += wp.float64(whole_end - run_start)
+            heights += prefix[r, whole_end] - prefix[r, run_start]
+            offsets += sum_of_offsets(run_start - c, whole_end - 1 - c)
+            squares += sum_of_squares(run_start - c, whole_end - 1 - c)
+            for first in range(run_start, run_end, BLOCK):
+                lifted = block_values()
+                for q in range(BLOCK):
+                    lifted[q] = NO_CONTACT
+                    if first + q < run_end:
+                        lifted[q] = h[r, first + q] + d
+                depth = indenter_depths(first - c - BLOCK + 1, curvature)
+                if first < whole_end:
+                    for q in range(BLOCK):
                         for k in range(BLOCK):
-                            if ((ambiguous >> k) & 1) == 1:
-                                acc[k] = acc[k] + wp.max(h_l - curvature * m * m, zero)
-                            m -= wp.float64(1.0)
+                            absolute[k] = absolute[k] + wp.abs(lifted[q] - depth[q - k + BLOCK - 1])
+                else:
+                    for q in range(BLOCK):
+                        for k in range(BLOCK):
+                            acc[k] = acc[k] + wp.max(lifted[q] - depth[q - k + BLOCK - 1], zero)
+    shift = wp.float64(0.0)  # k as a float; wp.float64(k) would retype the unrolled k (Warp 1.19)
+    half = wp.float64(0.5)
+    for k in range(BLOCK):
+        signed = heights + springs * d - curvature * (squares - two * shift * offsets + shift * shift * springs)
+        acc[k] = acc[k] + half * (signed + absolute[k])
+        shift += one
     return acc
 
 
-@wp.kernel
+@wp.kernel(cuda_max_registers=TREE_MAX_REGISTERS)
 def contact_force_tree(
     h: wp.array2d(dtype=wp.float64),
     prefix: wp.array2d(dtype=wp.float64),
@@ -327,9 +392,9 @@ def contact_force_tree(
     """``force[r, s] = F - offset`` (N): F with the wheel at spring ``first + s`` of row r,
     indentation d (m).
 
-    Launched over ``(R, ceil(steps / 8))``; thread t computes steps 8t .. 8t+7. Bands of at
-    most ``band_limit`` springs are summed directly (register-blocked), wider ones descend the
-    tree (:func:`band_descent`).
+    Launched over ``(R, ceil(steps / 8))``; thread t computes steps 8t .. 8t+7. In rows whose
+    band holds at most ``band_limit`` springs a side the bands are summed directly
+    (register-blocked), in wider ones they descend the tree (:func:`band_descent`).
     """
     r, t = wp.tid()
     base = t * BLOCK
@@ -345,10 +410,11 @@ def contact_force_tree(
         outer_right = wp.min(outer, reach_inclusive(d + right[1], curvature))
         core_left = wp.max(core, reach_strict(d + left[0], curvature))
         outer_left = wp.min(outer, reach_inclusive(d + left[1], curvature))
-        # a side whose band holds more than band_limit springs is traversed once for the 8
+        # in a row whose band is wider than band_limit each side is traversed once for the 8
         # steps (band_descent); its core edge is then shared by the 8 steps
-        descend_right = outer_right - core_right > band_limit and core_right >= BLOCK - 1
-        descend_left = outer_left - core_left > band_limit and core_left >= BLOCK - 1
+        wide = outer - core > band_limit
+        descend_right = wide and core_right >= BLOCK - 1
+        descend_left = wide and core_left >= BLOCK - 1
         acc = block_values()
         for j in range(BLOCK):
             low = c + j - core_left
