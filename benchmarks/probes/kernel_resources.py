@@ -37,7 +37,7 @@ def main() -> None:
         source = glob.glob(os.path.join(os.path.dirname(path), "*.cu"))
         names = set()
         for cu in source:
-            names |= set(re.findall(r'extern "C" __global__ void (\w+)\(', open(cu).read()))
+            names |= set(re.findall(r'extern "C" __global__ void (?:WP_MAXNREG\(\d+\) )?(\w+)\(', open(cu).read()))
         module = cupy.RawModule(path=path)
         for name in sorted(names):
             if not name.endswith("forward"):
