@@ -32,8 +32,11 @@ from .ensemble.lines import rough_lines
 from .ensemble.pipeline import H_BOUND_SIGMAS, run_ensemble
 from .params import Params
 
-#: What the issue expects of the refinement exponents (time ~ n^p).
-EXPECTED_REFINEMENT_EXPONENT = {"direct": 2.0, "tree": 1.1, "edge": 1.0, "tree-descent": 1.1}
+#: What the issue expects of the refinement exponents (time ~ n^p). The n log n expectation is
+#: the traversal's (``tree-descent``); the default tree changes regime inside the sweep (direct
+#: band sums up to DEFAULT_BAND_LIMIT springs, the traversal beyond), so its fit over the sweep
+#: has no single expected value.
+EXPECTED_REFINEMENT_EXPONENT = {"direct": 2.0, "tree": None, "edge": 1.0, "tree-descent": 1.1}
 #: The refinement sweep also times the tree with every band traversed (band_limit 0): the
 #: O(n log n) traversal of physics.md section 4 at every size, next to the default, which sums
 #: the narrowed bands directly up to DEFAULT_BAND_LIMIT springs and traverses wider ones.
@@ -278,8 +281,10 @@ def format_table(record: dict) -> str:
         for device, per_alg in per_device.items():
             for alg, fit in per_alg.items():
                 expected = EXPECTED_REFINEMENT_EXPONENT[alg] if section == "refinement" else 1.0
+                note = (f"expected ~{expected:g}" if expected is not None else
+                        f"hybrid: bands up to {DEFAULT_BAND_LIMIT} springs summed directly; n log n: tree-descent")
                 lines.append(f"  {section:<10} {device:<7} {alg:<6} p = {fit['exponent']:.3f} +- {fit['stderr']:.3f}"
-                             f"   (expected ~{expected:g})")
+                             f"   ({note})")
     for row in record["cpu_vs_cuda"]:
         speed = ", ".join(f"{k[8:]} {v:.0f}x" for k, v in row.items() if k.startswith("speedup_"))
         lines.append(f"  cpu vs cuda {row['algorithm']:<6} n = {row['n']}, R = {row['realizations']}: {speed}")
