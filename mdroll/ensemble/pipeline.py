@@ -256,6 +256,7 @@ def run_ensemble(
     bar.update(totals.done)
 
     stage = _StageClock(device, timings)
+    rows = None
     for start in range(totals.done, len(indices), batch):
         idx = indices[start:start + batch]
         lines = stage("generate", lambda: to_warp(rough_lines(params, seed, idx, device=device), device))
@@ -273,6 +274,9 @@ def run_ensemble(
             "spectra", lambda: psd_moments_of_batch(force, accel, sums, params, device, window))
         with queue_on(device):
             stage("spectra", lambda: totals.add_moments(len(idx), force_moments, accel_moments))
+            if start + batch >= len(indices):
+                # the result, queued before the last batch's wait, which then covers its copy too
+                rows = totals.spectra_on_host(params, wait=False)
         # the batch's one wait: its checks and force sums need the sums and flags on the host (a
         # failed check ends the run: the moments just merged are never seen or saved)
         host_sums, psd_bad = to_host(sums), to_host(psd_not_finite)
@@ -286,8 +290,10 @@ def run_ensemble(
         del lines, prepared, force, accel
     bar.close()
 
-    with queue_on(device):
-        q, omega, force_psd, force_psd_stderr, accel_psd, accel_psd_stderr = totals.spectra_on_host(params)
+    if rows is None:  # a resumed run that had nothing left to do
+        with queue_on(device):
+            rows = totals.spectra_on_host(params)
+    q, omega, force_psd, force_psd_stderr, accel_psd, accel_psd_stderr = rows
     stage.settle()
     n = len(indices)
     return EnsembleResult(
@@ -376,19 +382,19 @@ class _Totals:
         self.lost += int(sums[:, LOST].sum())
         self.done += sums.shape[0]
 
-    def spectra_on_host(self, params: Params) -> tuple[np.ndarray, ...]:
+    def spectra_on_host(self, params: Params, wait: bool = True) -> tuple[np.ndarray, ...]:
         """``(q, omega, force mean, its stderr, accel mean, its stderr)`` per bin (rad/m, rad/s,
         N^2 m, N^2 m, (m/s^2)^2 m, (m/s^2)^2 m), computed where the moments live and brought to
         the host in one copy, into page-locked memory on CUDA (the rows are views of it): six
         separate copies and host arithmetic on 5e5 bins took ~10 ms of a 30 ms thesis-scale run
         on an H200 (benchmarks/results/host_probe_H200.json), one copy into pageable memory ~3
-        (overhead_probe_H200_v7.json)."""
+        (overhead_probe_H200_v7.json). ``wait=False``: the copy is only queued (:func:`to_host`)."""
         force_mean, force_stderr = self.force.mean_and_stderr()
         accel_mean, accel_stderr = self.accel.mean_and_stderr()
         xp = array_module(force_mean)
         q = wavenumbers(self.steps, params.dx, xp)
         return tuple(to_host(xp.stack([q, q * params.v0, force_mean, force_stderr, accel_mean, accel_stderr]),
-                             page_locked=True))
+                             page_locked=True, wait=wait))
 
     def save(self, path, key: dict) -> None:
         """Write the totals and the run's identity ``key`` to ``path`` atomically."""

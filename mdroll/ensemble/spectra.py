@@ -62,10 +62,12 @@ def array_rows(array, device: str):
     return array.numpy() if hasattr(array, "numpy") else np.asarray(array)
 
 
-def to_host(array, page_locked: bool = False) -> np.ndarray:
+def to_host(array, page_locked: bool = False, wait: bool = True) -> np.ndarray:
     """A NumPy array from a NumPy, CuPy or Warp array. ``page_locked``: a CuPy array lands in
     page-locked (pinned) host memory from CuPy's pool, which the device writes at full link
-    speed; the returned array keeps that memory until it is freed."""
+    speed; the returned array keeps that memory until it is freed. ``wait=False`` (with
+    ``page_locked``): the copy is only queued on the current stream, and the array may be read
+    once the host has waited for that stream."""
     if hasattr(array, "get"):
         if not page_locked:
             return array.get()
@@ -73,7 +75,7 @@ def to_host(array, page_locked: bool = False) -> np.ndarray:
 
         memory = cupy.cuda.alloc_pinned_memory(array.nbytes)
         out = np.frombuffer(memory, array.dtype, array.size).reshape(array.shape)
-        return array.get(out=out)
+        return array.get(out=out, blocking=wait)
     if hasattr(array, "numpy"):
         return array.numpy()
     return np.asarray(array)
