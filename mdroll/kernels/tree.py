@@ -223,6 +223,14 @@ def range_bounds(
 
 
 @wp.func
+def span_totals(prefix: wp.array2d(dtype=wp.float64), r: int, i: int, j: int, c: int) -> wp.vec4d:
+    """Over springs ``l = i .. j-1`` of row r: (count, sum h (m), sum m, sum m^2) with offsets
+    ``m = l - c`` from the wheel; the count and the offset sums are exact integers (eq 18-20)."""
+    return wp.vec4d(wp.float64(j - i), prefix[r, j] - prefix[r, i], sum_of_offsets(i - c, j - 1 - c),
+                    sum_of_squares(i - c, j - 1 - c))
+
+
+@wp.func
 def indenter_depths(m0: int, curvature: wp.float64) -> block_heights:
     """``curvature m^2`` (m) for the 15 offsets ``m = m0 .. m0 + 14``: the indenter depths that the
     64 (spring, step) pairs of a block of 8 springs and 8 steps need (eq 7)."""
@@ -274,11 +282,13 @@ def band_descent(
     ancestor that starts there (:func:`next_node`). Settled-full nodes only add to four running
     totals, the spring count and the sums of h, m and m^2 (m = l - c), and the 8 closed forms
     follow once at the end: ``sum (m - k)^2 = sum m^2 - 2 k sum m + k^2 count`` (eq 19-20, exact
-    integers). A leaf that stays mixed is summed spring by spring for the 8 steps (eq 10-12).
+    integers). A run of adjacent leaves that stay mixed is summed for the 8 steps in blocks of 8
+    springs (eq 10-12): whole blocks by ``max(u, 0) = (u + |u|) / 2``, their ``sum u`` in the
+    same totals, the last partial block by ``max(u, 0)``.
 
-    On the GPU the leaves' sums are the costly part, and a thread reaches its mixed leaves at its
-    own pace: the walk to the next mixed leaf is an inner loop, and the sum follows it in the
-    outer one, so a warp's threads sum their leaves together instead of each stalling the rest.
+    On the GPU the runs' sums are the costly part, and a thread reaches its mixed leaves at its
+    own pace: the walk to the end of the next run is an inner loop, and the sum follows it in
+    the outer one, so a warp's threads sum their runs together instead of each stalling the rest.
     The nodes visited grow as the number of contact edges in the band times its depth, not as
     the band's width.
 
@@ -289,12 +299,9 @@ def band_descent(
     one = wp.float64(1.0)
     two = wp.float64(2.0)
     zero = wp.float64(0.0)
-    # spring count and sums of h, m and m^2 (m = l - c), weighted 2 for settled-full nodes and 1
-    # for the whole blocks of mixed runs, which add sum |u| per step to ``absolute``
-    springs = wp.float64(0.0)
-    heights = wp.float64(0.0)
-    offsets = wp.float64(0.0)
-    squares = wp.float64(0.0)
+    # span_totals weighted 2 for settled-full nodes and 1 for the whole blocks of mixed runs,
+    # which add sum |u| per step to ``absolute``
+    totals = wp.vec4d()
     absolute = block_values()
     index = lo // leaf_size
     level = int(0)
@@ -319,10 +326,7 @@ def band_descent(
                 f_near = wp.float64(near)
                 f_far = wp.float64(far)
                 if curvature * f_far * f_far - d < box[0]:
-                    springs += two * wp.float64(j - i)
-                    heights += two * (prefix[r, j] - prefix[r, i])
-                    offsets += two * sum_of_offsets(i - c, j - 1 - c)
-                    squares += two * sum_of_squares(i - c, j - 1 - c)
+                    totals = totals + two * span_totals(prefix, r, i, j, c)
                 elif curvature * f_near * f_near - d <= box[1]:
                     settled = 0
             if settled == 0 and level > 0:
@@ -341,10 +345,7 @@ def band_descent(
             # whole blocks of 8 springs by max(u, 0) = (u + |u|) / 2, sum u in the totals; the
             # last, partial block by max(u, 0) with the missing springs out of reach
             whole_end = run_start + ((run_end - run_start) // BLOCK) * BLOCK
-            springs += wp.float64(whole_end - run_start)
-            heights += prefix[r, whole_end] - prefix[r, run_start]
-            offsets += sum_of_offsets(run_start - c, whole_end - 1 - c)
-            squares += sum_of_squares(run_start - c, whole_end - 1 - c)
+            totals = totals + span_totals(prefix, r, run_start, whole_end, c)
             for first in range(run_start, run_end, BLOCK):
                 lifted = block_values()
                 for q in range(BLOCK):
@@ -363,7 +364,7 @@ def band_descent(
     shift = wp.float64(0.0)  # k as a float; wp.float64(k) would retype the unrolled k (Warp 1.19)
     half = wp.float64(0.5)
     for k in range(BLOCK):
-        signed = heights + springs * d - curvature * (squares - two * shift * offsets + shift * shift * springs)
+        signed = totals[1] + totals[0] * d - curvature * (totals[3] - two * shift * totals[2] + shift * shift * totals[0])
         acc[k] = acc[k] + half * (signed + absolute[k])
         shift += one
     return acc
