@@ -9,21 +9,24 @@ from .devices import DeviceError, available_devices
 from .ensemble.force import ALGORITHMS, BOUNDARIES, contact_force, step_range
 from .ensemble.lines import rough_lines
 from .ensemble.pipeline import EnsembleResult, run_ensemble
+from ._version import __version__
+from .ensemble.spec import EnsembleSpec, run_specs
 from .params import ParameterError, Params
 
-__version__ = "0.1.0"
 
 __all__ = [
     "ALGORITHMS",
     "BOUNDARIES",
     "DeviceError",
     "EnsembleResult",
+    "EnsembleSpec",
     "ParameterError",
     "Params",
     "available_devices",
     "contact_force",
     "rough_lines",
     "run_ensemble",
+    "run_specs",
     "step_range",
     "__version__",
 ]

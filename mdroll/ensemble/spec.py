@@ -1,0 +1,105 @@
+"""Ensemble specs and the sweep runner: what to compute, apart from where and how it is run.
+
+An :class:`EnsembleSpec` names one ensemble completely (parameters, seed, realization range,
+algorithm, dynamics mode, boundary, window), so that its result depends on the spec alone,
+never on the device, the batch size or the split into work units: every realization derives
+from (seed, realization index). :func:`run_specs` is the one sweep runner that the studies, the
+validation checks and the inverse problem's bootstrap go through; a distributed runner plugs in
+behind the same call.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+from ..params import ParameterError, Params
+
+
+@dataclass(frozen=True)
+class EnsembleSpec:
+    """One ensemble: ``realizations`` consecutive realizations from index ``first``.
+
+    Attributes
+    ----------
+    params : Params
+        Physical and numerical parameters (SI units).
+    seed : int
+        Master seed in [0, 2^64).
+    first, realizations : int
+        The realization indices ``first .. first + realizations - 1``.
+    algorithm, mode, boundary : str
+        As for :func:`mdroll.run_ensemble`.
+    window : bool
+        Hann window on the force and acceleration series before their PSDs.
+    """
+
+    params: Params
+    seed: int = 0
+    first: int = 0
+    realizations: int = 1
+    algorithm: str = "tree"
+    mode: str = "decoupled"
+    boundary: str = "open"
+    window: bool = False
+
+    def __post_init__(self) -> None:
+        for name in ("first", "realizations"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise ParameterError(f"{name} must be an integer, got {value!r}")
+        if self.first < 0:
+            raise ParameterError(f"first = {self.first!r} is not allowed: it must be >= 0")
+        if self.realizations < 1:
+            raise ParameterError(f"realizations = {self.realizations!r} is not allowed: it must be at least 1")
+
+    @property
+    def indices(self) -> range:
+        """The realization indices of this spec."""
+        return range(self.first, self.first + self.realizations)
+
+    def split(self, size: int) -> list["EnsembleSpec"]:
+        """Consecutive specs of at most ``size`` realizations that together are this one."""
+        if isinstance(size, bool) or not isinstance(size, int) or size < 1:
+            raise ParameterError(f"size = {size!r} is not allowed: it must be a positive integer")
+        return [dataclasses.replace(self, first=start, realizations=min(size, self.first + self.realizations - start))
+                for start in range(self.first, self.first + self.realizations, size)]
+
+    def as_dict(self) -> dict:
+        """A JSON-ready dict; :meth:`from_dict` inverts it."""
+        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        out["params"] = self.params.as_dict()
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "EnsembleSpec":
+        data = dict(data)
+        return cls(params=Params(**data.pop("params")), **data)
+
+    def key(self) -> str:
+        """A hex digest of the spec and the mdroll version: equal keys, equal results (to rounding)."""
+        from .._version import __version__
+
+        text = json.dumps({"spec": self.as_dict(), "mdroll": __version__}, sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()
+
+    def run(self, device: str = "auto", progress: bool = False, **options):
+        """Run this ensemble with :func:`mdroll.run_ensemble` (``options``: batch, memory_limit,
+        checkpoint, ...); returns its :class:`~mdroll.ensemble.pipeline.EnsembleResult`."""
+        from .pipeline import run_ensemble
+
+        return run_ensemble(self.params, seed=self.seed, realizations=self.indices, algorithm=self.algorithm,
+                            mode=self.mode, boundary=self.boundary, window=self.window, device=device,
+                            progress=progress, **options)
+
+
+def run_specs(specs: Iterable[EnsembleSpec], device: str = "auto", progress: bool = False, **options) -> list:
+    """Run every spec in order, one after the other on ``device``; the results in the specs' order.
+
+    The sweep runner of the studies, the checks and the bootstraps (``options`` go to
+    :meth:`EnsembleSpec.run`).
+    """
+    return [spec.run(device=device, progress=progress, **options) for spec in specs]
