@@ -11,6 +11,8 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
+from . import physics
+
 
 class ParameterError(ValueError):
     """A parameter is out of range, of the wrong type or not finite.
@@ -72,7 +74,7 @@ class Params:
     dx: float = 5e-6
     h0: float = 0.5e-6
     H: float = 0.7
-    q_min: float = 2.0 * math.pi / 5e-3
+    q_min: float = physics.TWO_PI / 5e-3
     q_max: float | None = field(default=None)
     n_real: int = 300
 
@@ -123,44 +125,45 @@ class Params:
         if self._band_range() is None:
             raise ParameterError(
                 f"q_min = {self.q_min!r}, q_max = {self.q_max!r} rad/m hold no wavenumber q_k = 2 pi k / L "
-                f"of the grid (2 pi / L = {2 * math.pi / self.length:.6g} rad/m)"
+                f"of the grid (2 pi / L = {self.dq:.6g} rad/m)"
             )
 
     # ------------------------------------------------------------------ derived quantities
     @property
     def E_star(self) -> float:
-        """Effective modulus E* = E / (2 (1 - nu^2)) (Pa), eq 1-2 (same material both sides)."""
-        return self.E / (2.0 * (1.0 - self.nu**2))
+        """Effective modulus E* = E / (2 (1 - nu^2)) (Pa), eq 1-2: :func:`physics.effective_modulus`."""
+        return float(physics.effective_modulus(self.E, self.nu))
 
     @property
     def d0(self) -> float:
-        """Hertz indentation d0 = (3 F_N / (4 E* sqrt(R)))^(2/3) (m), eq 14."""
-        return (3.0 * self.F_N / (4.0 * self.E_star * math.sqrt(self.R))) ** (2.0 / 3.0)
+        """Hertz indentation d0 = (3 F_N / (4 E* sqrt(R)))^(2/3) (m), eq 14: :func:`physics.hertz_indentation`."""
+        return float(physics.hertz_indentation(self.F_N, self.E_star, self.R))
 
     @property
     def a(self) -> float:
-        """Hertz contact radius a = sqrt(d0 R) (m), eq 15."""
-        return math.sqrt(self.d0 * self.R)
+        """Hertz contact radius a = sqrt(d0 R) (m), eq 15: :func:`physics.contact_radius`."""
+        return float(physics.contact_radius(self.d0, self.R))
 
     @property
     def k_spring(self) -> float:
-        """Stiffness of one MDR spring k = E* dx (N/m), section 2."""
-        return self.E_star * self.dx
+        """Stiffness of one MDR spring k = E* dx (N/m), section 2: :func:`physics.spring_stiffness`."""
+        return float(physics.spring_stiffness(self.E_star, self.dx))
 
     @property
     def F_hertz(self) -> float:
-        """Hertz force (4/3) E* a^3 / R at d0 (N); equals F_N."""
-        return 4.0 / 3.0 * self.E_star * self.a**3 / self.R
+        """Hertz force (4/3) E* a^3 / R at d0 (N); equals F_N: :func:`physics.hertz_force`."""
+        return float(physics.hertz_force(self.d0, self.E_star, self.R))
 
     @property
     def k_contact(self) -> float:
-        """Linearized contact stiffness k_c = dF/dd = 2 E* a (N/m), section 4.2."""
-        return 2.0 * self.E_star * self.a
+        """Linearized contact stiffness k_c = dF/dd = 2 E* a (N/m), section 4.2: :func:`physics.contact_stiffness`."""
+        return float(physics.contact_stiffness(self.E_star, self.a))
 
     @property
     def omega_0(self) -> float:
-        """Contact resonance omega_0 = sqrt(k_c / m) = sqrt(2 a E* / m) (rad/s), section 4.2."""
-        return math.sqrt(self.k_contact / self.m)
+        """Contact resonance omega_0 = sqrt(k_c / m) = sqrt(2 a E* / m) (rad/s), section 4.2:
+        :func:`physics.resonance_frequency`."""
+        return float(physics.resonance_frequency(self.k_contact, self.m))
 
     @property
     def n_points(self) -> int:
@@ -171,6 +174,11 @@ class Params:
     def length(self) -> float:
         """Length of the discrete line n_points * dx (m); the L of every spectrum."""
         return self.n_points * self.dx
+
+    @property
+    def dq(self) -> float:
+        """Wavenumber step of the line's grid, 2 pi / length (rad/m): ``q_k = k dq``."""
+        return physics.TWO_PI / self.length
 
     @property
     def dt(self) -> float:
@@ -186,7 +194,7 @@ class Params:
         """First and last k in 1..n/2 with q_k = 2 pi k / length in the band (:meth:`in_band`), or
         None: from the cutoffs by division, then settled with :meth:`in_band` itself, so a
         wavenumber on a cutoff up to rounding counts as it does there; no array over the grid."""
-        dq = 2.0 * math.pi / self.length
+        dq = self.dq
         top = self.n_points // 2
 
         def inside(k: int) -> bool:
@@ -211,9 +219,9 @@ class Params:
 
     def in_band(self, q) -> np.ndarray:
         """Mask of ``q_min <= |q| <= q_max`` (inclusive, to a relative 1e-12 so that a grid
-        wavenumber landing on a cutoff up to rounding, e.g. q_k = 2 pi / 5 mm, is inside)."""
-        q = np.abs(np.asarray(q, dtype=np.float64))
-        return (q >= self.q_min * (1.0 - 1e-12)) & (q <= self.q_max * (1.0 + 1e-12))
+        wavenumber landing on a cutoff up to rounding, e.g. q_k = 2 pi / 5 mm, is inside):
+        :func:`physics.in_roughness_band`."""
+        return physics.in_roughness_band(q, self.q_min, self.q_max)
 
     @property
     def mode_range(self) -> tuple[int, int]:
@@ -226,22 +234,17 @@ class Params:
 
         The discrete normalization of physics.md section 3, which makes the two-sided PSD
         sum to the mean square height:
-        ``lambda A = h0^2 / (2 (2 pi / L) sum_{q_min <= q_k <= q_max} q_k^(-2H-1))``.
+        ``lambda A = h0^2 / (2 (2 pi / L) sum_{q_min <= q_k <= q_max} q_k^(-2H-1))``
+        (:func:`physics.lambda_A_discrete`).
         """
-        dq = 2.0 * math.pi / self.length
-        q = dq * self._band_modes().astype(np.float64)
-        return self.h0**2 / (2.0 * dq * float(np.sum(q ** (-2.0 * self.H - 1.0))))
+        band_q = self.dq * self._band_modes().astype(np.float64)
+        return physics.lambda_A_discrete(self.h0, self.H, band_q, self.dq)
 
     def psd(self, q) -> np.ndarray:
-        """Two-sided 1D MDR roughness PSD C_1D(q) = lambda A |q|^(-2H-1) on the band (m^3), eq 33.
-
-        ``q`` in rad/m; zero outside q_min <= |q| <= q_max.
+        """Two-sided 1D MDR roughness PSD C_1D(q) = lambda A |q|^(-2H-1) on the band (m^3), eq 33:
+        :func:`physics.roughness_psd`. ``q`` in rad/m; zero outside q_min <= |q| <= q_max.
         """
-        q = np.abs(np.asarray(q, dtype=np.float64))
-        inside = self.in_band(q)
-        out = np.zeros_like(q)
-        out[inside] = self.lambda_A * q[inside] ** (-2.0 * self.H - 1.0)
-        return out
+        return physics.roughness_psd(q, self.lambda_A, self.H, self.q_min, self.q_max)
 
     # ------------------------------------------------------------------ helpers
     def replace(self, **changes) -> "Params":
@@ -273,7 +276,7 @@ class Params:
             "F_hertz": (self.F_hertz, "N", "Hertz force (4/3) E* a^3/R"),
             "k_contact": (self.k_contact, "N/m", "contact stiffness 2 E* a"),
             "omega_0": (self.omega_0, "rad/s", "contact resonance sqrt(2 a E*/m)"),
-            "f_0": (self.omega_0 / (2 * math.pi), "Hz", "contact resonance omega_0/(2 pi)"),
+            "f_0": (self.omega_0 / physics.TWO_PI, "Hz", "contact resonance omega_0/(2 pi)"),
             "n_points": (self.n_points, "-", "springs on the line, L/dx"),
             "dt": (self.dt, "s", "time step dx/v0"),
             "springs_in_contact": (self.springs_in_contact, "-", "2a/dx"),
