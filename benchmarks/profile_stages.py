@@ -17,7 +17,8 @@ from mdroll.devices import resolve_device, synchronize, to_warp
 from mdroll.ensemble.fft import rfft_rows
 from mdroll.ensemble.force import launch_force, prepare_lines
 from mdroll.ensemble.lines import random_spectra, rough_lines
-from mdroll.ensemble.pipeline import H_BOUND_SIGMAS, _Totals
+from mdroll.ensemble.checkpoint import RunTotals
+from mdroll.ensemble.pipeline import H_BOUND_SIGMAS
 from mdroll.ensemble.spectra import psd_moments_of_batch, series_sums, to_host
 from mdroll.provenance import environment
 
@@ -57,7 +58,7 @@ def main() -> None:
         moments = clock("spectra (rfft, PSD moments)", lambda: psd_moments_of_batch(force, None, sums, p, device))
 
         def merge():
-            totals = _Totals(steps=prepared.steps)
+            totals = RunTotals(steps=prepared.steps)
             totals.add_moments(len(idx), moments[0], moments[1])
             totals.add_sums(to_host(sums), p.F_N)
 

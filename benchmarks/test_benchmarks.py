@@ -9,7 +9,7 @@ import pytest
 from mdroll import ALGORITHMS, Params, rough_lines, run_ensemble
 from mdroll.devices import synchronize, to_warp
 from mdroll.ensemble.force import launch_force, prepare_lines
-from mdroll.ensemble.pipeline import coupled_series
+from mdroll.ensemble.coupled import coupled_series
 from mdroll.ensemble.spectra import psd_moments_of_batch, series_sums
 
 #: realizations per benchmark and the largest CPU problem (points x realizations) per kind

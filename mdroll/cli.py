@@ -174,7 +174,8 @@ RUN_DEFAULTS = {"seed": 0, "algorithm": "tree", "mode": "decoupled", "boundary":
 
 def cmd_run(args) -> int:
     from .devices import resolve_device
-    from .ensemble.pipeline import CHECKPOINT, read_checkpoint, run_ensemble
+    from .ensemble.checkpoint import CHECKPOINT, read_checkpoint
+    from .ensemble.pipeline import run_ensemble
 
     device = resolve_device(args.device)
     if args.resume:
@@ -215,13 +216,14 @@ def _positive_gib(value: float) -> int:
 
 def write_outputs(result, out: Path) -> None:
     """spectra.npz, summary.json and the two PNGs, and the summary table on stdout."""
-    from .ensemble.pipeline import result_summary
+    from .ensemble.result import result_summary
+    from .plotting import plot_psd
 
     result.save(out / "spectra.npz")
     summary = result_summary(result)
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    result.plot("accel", out / "accel_psd.png")
-    result.plot("force", out / "force_psd.png")
+    plot_psd(result, "accel", out / "accel_psd.png")
+    plot_psd(result, "force", out / "force_psd.png")
 
     print(f"\n{result.n_real} realizations x {result.steps} steps, {result.algorithm}, {result.mode}, "
           f"{result.boundary} boundary, device {result.device}")
@@ -235,7 +237,7 @@ def write_outputs(result, out: Path) -> None:
 
 
 def cmd_merge(args) -> int:
-    from .ensemble.pipeline import EnsembleResult
+    from .ensemble.result import EnsembleResult
 
     paths = [Path(p) / "spectra.npz" if Path(p).is_dir() else Path(p) for p in args.inputs]
     missing = [str(p) for p in paths if not p.is_file()]

@@ -55,7 +55,7 @@ def test_decoupled_spectra_are_those_of_the_semi_implicit_euler_response(device,
 def test_coupled_windowed_spectra_are_those_of_the_coupled_series(device):
     """Coupled mode: both series through the FFT, the Hann window as a stencil, against numpy."""
     from mdroll.ensemble.force import prepare_lines
-    from mdroll.ensemble.pipeline import coupled_series
+    from mdroll.ensemble.coupled import coupled_series
 
     p = Params(L=0.03, n_real=2)
     result = run_ensemble(p, seed=4, mode="coupled", device=device, progress=False, window=True)
@@ -98,7 +98,7 @@ def test_coupled_smooth_line_oscillates_at_omega_0_without_energy_growth(device)
     (within 1 %, the linearization), no energy growth over 1e5 steps."""
     from mdroll.devices import warp
     from mdroll.ensemble.force import prepare_lines
-    from mdroll.ensemble.pipeline import coupled_series
+    from mdroll.ensemble.coupled import coupled_series
 
     wp = warp()
     p = Params(L=0.511)  # 1e5 steps after the open margins
@@ -136,7 +136,7 @@ def test_coupled_force_is_the_force_at_the_current_indentation(device, algorithm
     edge) at the wheel's position and at the indentation the recorded d'' implies. On CUDA the
     block's lanes share each step's sum, on the CPU one thread does it all."""
     from mdroll.ensemble.force import prepare_lines
-    from mdroll.ensemble.pipeline import coupled_series
+    from mdroll.ensemble.coupled import coupled_series
     from mdroll.validation.formulas import edge_force
 
     p = Params(L=0.03, dx=20e-6, h0=2e-6, H=0.5)

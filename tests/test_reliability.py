@@ -16,8 +16,9 @@ import warp as wp
 
 import mdroll
 from mdroll import EnsembleResult, Params, contact_force, rough_lines, run_ensemble
-from mdroll.ensemble import pipeline
-from mdroll.ensemble.pipeline import CHECKPOINT, NonFiniteError, read_checkpoint
+from mdroll.ensemble import batching, pipeline
+from mdroll.ensemble.checkpoint import CHECKPOINT, read_checkpoint
+from mdroll.ensemble.pipeline import NonFiniteError
 
 ROOT = Path(__file__).resolve().parents[1]
 P = Params(L=0.05, n_real=6)
@@ -238,7 +239,7 @@ def test_kill_9_then_resume_equals_an_uninterrupted_run(tmp_path):
 
 # ----------------------------------------------------------------------------- bounded memory
 def test_memory_cap_shrinks_batches_and_the_run_completes():
-    per_realization = pipeline.BYTES_PER_POINT * P.n_points
+    per_realization = batching.BYTES_PER_POINT * P.n_points
     capped = run_ensemble(P, seed=2, device="cpu", progress=False, memory_limit=4 * per_realization)
     assert capped.batch == 2  # half the cap: two realizations a batch, three batches
     free = run_ensemble(P, seed=2, device="cpu", progress=False)
@@ -248,6 +249,6 @@ def test_memory_cap_shrinks_batches_and_the_run_completes():
 
 def test_thesis_scale_batches_fit_a_24_gib_host():
     thesis = Params()
-    batch = pipeline.default_batch(thesis, "cpu", memory_limit=24 * 2**30)
+    batch = batching.default_batch(thesis, "cpu", memory_limit=24 * 2**30)
     assert 1 <= batch < thesis.n_real
-    assert batch * pipeline.BYTES_PER_POINT * thesis.n_points <= 12 * 2**30
+    assert batch * batching.BYTES_PER_POINT * thesis.n_points <= 12 * 2**30
