@@ -22,14 +22,13 @@ import numpy as np
 from ..devices import resolve_device
 from ..ensemble.force import contact_force
 from ..ensemble.lines import rough_lines
+from ..ensemble import measure
+# the band statistics live in mdroll.ensemble.measure, shared with the studies
+from ..ensemble.measure import Z_SIGMA, binned_ratio, independent_ratio, paired_ratio, period_bands
 from ..ensemble.pipeline import default_batch, progress_bar, run_ensemble
 from ..ensemble.spectra import RunningMoments, array_module, array_rows, psd_rows, to_host, wavenumbers
 from ..params import Params
 from . import formulas
-
-#: Standard errors added to each model allowance.
-Z_SIGMA = 3.0
-
 
 @dataclass
 class CheckResult:
@@ -136,37 +135,7 @@ def force_spectra(params: Params, seed: int, n_real: int, algorithms=("tree",), 
                    max_diff if {"tree", "direct"} <= set(algorithms) else None)
 
 
-# ---------------------------------------------------------------------------- band statistics
-def period_bands(q: np.ndarray, q_lo: float, q_hi: float, a: float) -> list[np.ndarray]:
-    """Masks of consecutive whole modulation periods [q_lo + j pi/a, q_lo + (j+1) pi/a) up to q_hi."""
-    period = math.pi / a
-    count = int(math.floor((q_hi - q_lo) / period * (1 + 1e-12)))
-    return [(q >= q_lo + j * period) & (q < q_lo + (j + 1) * period) for j in range(count)]
-
-
-def paired_ratio(x: np.ndarray, y) -> tuple[float, float]:
-    """``mean(x) / mean(y)`` of per-realization values (y an array of the same realizations, or a
-    constant) and its relative standard error, from the scatter of ``x_i - ratio y_i``."""
-    y = np.broadcast_to(np.asarray(y, dtype=np.float64), x.shape)
-    ratio = x.mean() / y.mean()
-    residual = x - ratio * y
-    return float(ratio), float(residual.std(ddof=1) / math.sqrt(x.size) / x.mean())
-
-
-def independent_ratio(mean_x: float, rel_x: float, mean_y: float, rel_y: float) -> tuple[float, float]:
-    """Ratio of two independent estimates and its relative standard error (in quadrature)."""
-    return mean_x / mean_y, math.hypot(rel_x, rel_y)
-
-
-def binned_ratio(mean, stderr, reference_mean, reference_stderr, mask) -> tuple[float, float]:
-    """Ratio of band sums of two independent ensembles' mean PSDs over ``mask`` and its relative
-    standard error, bins taken as independent."""
-    x, y = float(mean[mask].sum()), float(reference_mean[mask].sum())
-    rel_x = math.sqrt(float((stderr[mask] ** 2).sum())) / x
-    rel_y = math.sqrt(float((reference_stderr[mask] ** 2).sum())) / y
-    return independent_ratio(x, rel_x, y, rel_y)
-
-
+# ---------------------------------------------------------------------------- plots
 def _spectrum_plot(q, curves, xlabel="q (rad/m)", ylabel="C_F (N^2 m)", marks=()):
     """A plot callback: log-log curves ``(label, y, stderr or None)`` on ``q`` and vertical marks."""
     def draw(ax):
@@ -395,25 +364,8 @@ def check_eq21(ens: Ensembles) -> list[CheckResult]:
 
 
 def period_averaged_slope(spectra: Spectra, name: str, q_lo: float, q_hi: float) -> float:
-    """Least-squares slope of log(PSD averaged over whole modulation periods) against log(q).
-
-    Periods run between consecutive zeros of sin^2(q a) (eq 26), from the first at or above
-    ``q_lo``. Each period's abscissa is the q whose power equals the period's mean of
-    ``q^p sin^2(q a)`` over the mean of ``sin^2(q a)`` at the fitted slope p, iterated to a fixed
-    point: with the period's centre instead, the convexity of q^p over a period biases the slope
-    (by -0.04 at p = -4.4 on [1.5, 8] q_min)."""
-    p = spectra.params
-    first_zero = math.ceil(q_lo * p.a / math.pi - 1e-9) * math.pi / p.a
-    bands = [m for m in period_bands(spectra.q, first_zero, q_hi, p.a) if m.any()]
-    y = np.log([spectra.mean[name][m].mean() for m in bands])
-    slope = float(np.polyfit(np.log([spectra.q[m].mean() for m in bands]), y, 1)[0])
-    for _ in range(50):
-        weights = [np.sin(spectra.q[m] * p.a) ** 2 for m in bands]
-        x = np.log([np.sum(spectra.q[m] ** slope * w) / np.sum(w) for m, w in zip(bands, weights)]) / slope
-        slope, previous = float(np.polyfit(x, y, 1)[0]), slope
-        if abs(slope - previous) < 1e-12:
-            break
-    return slope
+    """Slope of the period-averaged PSD ``name`` on [q_lo, q_hi] (:func:`mdroll.ensemble.measure.period_averaged_slope`)."""
+    return measure.period_averaged_slope(spectra.q, spectra.mean[name], spectra.params.a, q_lo, q_hi)[0]
 
 
 def check_eq23(ens: Ensembles) -> list[CheckResult]:
@@ -431,19 +383,10 @@ def check_eq23(ens: Ensembles) -> list[CheckResult]:
 
 
 def modulation_period_measured(spectra: Spectra, name: str, q_hi_factor: float = 24.0) -> float:
-    """Period (rad/m) of the autocorrelation of C_F q^(2H+3) on [q_min, q_hi]: the first maximum
-    after the first minimum, refined by a parabola through the three bins around it."""
+    """Modulation period (rad/m) of the PSD ``name`` on [q_min, q_hi_factor q_min]
+    (:func:`mdroll.ensemble.measure.modulation_period`)."""
     p = spectra.params
-    mask = (spectra.q >= p.q_min * (1 - 1e-12)) & (spectra.q <= q_hi_factor * p.q_min)
-    y = spectra.mean[name][mask] * spectra.q[mask] ** (2 * p.H + 3)
-    y = y - y.mean()
-    corr = np.correlate(y, y, mode="full")[y.size - 1:]
-    dips = np.where((corr[1:-1] < corr[:-2]) & (corr[1:-1] <= corr[2:]))[0] + 1
-    peaks = np.where((corr[1:-1] > corr[:-2]) & (corr[1:-1] >= corr[2:]))[0] + 1
-    k = int(peaks[peaks > dips[0]][0])
-    c0, c1, c2 = corr[k - 1], corr[k], corr[k + 1]
-    lag = k + 0.5 * (c0 - c2) / (c0 - 2 * c1 + c2)
-    return float(lag * (spectra.q[1] - spectra.q[0]))
+    return measure.modulation_period(spectra.q, spectra.mean[name], p.H, p.q_min, q_hi_factor * p.q_min)
 
 
 def check_eq26(ens: Ensembles) -> list[CheckResult]:
@@ -458,14 +401,8 @@ def check_eq26(ens: Ensembles) -> list[CheckResult]:
 
 
 def resonance_peak(result, lo: float = 0.5, hi: float = 2.0) -> float:
-    """Angular frequency (rad/s) of the largest acceleration-PSD bin in [lo, hi] omega_0,
-    refined by a parabola through log PSD of its two neighbours."""
-    w0 = result.params.omega_0
-    idx = np.where((result.omega >= lo * w0) & (result.omega <= hi * w0))[0]
-    k = int(idx[np.argmax(result.accel_psd[idx])])
-    c0, c1, c2 = np.log(result.accel_psd[k - 1:k + 2])
-    shift = 0.5 * (c0 - c2) / (c0 - 2 * c1 + c2)
-    return float(result.omega[k] + shift * (result.omega[1] - result.omega[0]))
+    """Peak (rad/s) of ``result``'s acceleration PSD in [lo, hi] omega_0 (:func:`mdroll.ensemble.measure.resonance_peak`)."""
+    return measure.resonance_peak(result.omega, result.accel_psd, result.params.omega_0, lo, hi)
 
 
 def check_resonance(ens: Ensembles) -> list[CheckResult]:
