@@ -118,6 +118,11 @@ def to_warp(array, device: str, dtype=None):
     return wp.array(host, dtype=dtype, device=device)
 
 
+def array_module(array):
+    """``cupy`` for a CuPy array, else ``numpy``: the module whose functions apply to ``array``."""
+    return __import__("cupy") if type(array).__module__.startswith("cupy") else np
+
+
 def cupy_view(array):
     """A CuPy array sharing memory with a CUDA Warp array."""
     import cupy

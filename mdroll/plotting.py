@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .validation import formulas
+from . import physics
 
 
 def plot_psd(result, quantity: str = "accel", path=None, ax=None):
@@ -23,9 +23,9 @@ def plot_psd(result, quantity: str = "accel", path=None, ax=None):
     q = result.q[1:]
     mean = getattr(result, f"{quantity}_psd")[1:] / p.v0
     err = getattr(result, f"{quantity}_psd_stderr")[1:] / p.v0
-    theory = formulas.force_psd_high_band(p, q) / p.v0
+    theory = physics.force_psd_high_band(q, p.lambda_A, p.H, p.q_min, p.q_max, p.E_star, p.a) / p.v0
     if quantity == "accel":
-        theory = theory * formulas.acceleration_transfer(p, omega)
+        theory = theory * physics.acceleration_transfer(omega, p.k_contact, p.m)
     unit = "N$^2$ s/rad" if quantity == "force" else "(m/s$^2$)$^2$ s/rad"
     label = "force" if quantity == "force" else "acceleration"
 
@@ -36,8 +36,8 @@ def plot_psd(result, quantity: str = "accel", path=None, ax=None):
     ax.loglog(omega, mean, color="C0", lw=0.6, label=f"ensemble mean ({result.n_real} realizations, {result.algorithm}, {result.mode})")
     positive = theory > 0
     ax.loglog(omega[positive], theory[positive], color="C3", lw=0.6, alpha=0.8, label="eq 40")
-    omega_0 = formulas.resonance_frequency(p)
-    omega_t = formulas.transition_frequency(p)
+    omega_0 = p.omega_0
+    omega_t = physics.transition_frequency(p.q_min, p.v0)
     ax.axvline(omega_0, color="k", ls="--", lw=0.8)
     ax.text(omega_0, ax.get_ylim()[1], r" $\omega_0$", va="top")
     ax.axvline(omega_t, color="0.4", ls=":", lw=0.8)
@@ -45,7 +45,7 @@ def plot_psd(result, quantity: str = "accel", path=None, ax=None):
     # slope guide q^-(2H+3), anchored to the mean at 2 q_min
     anchor = np.argmin(np.abs(q - 2 * p.q_min))
     guide = omega[anchor:anchor + max(2, len(omega) // 4)]
-    slope = formulas.power_law_exponent(p)
+    slope = physics.power_law_exponent(p.H)
     ax.loglog(guide, 3 * mean[anchor] * (guide / guide[0]) ** slope, color="C2", lw=1.2, label=f"$q^{{{slope:.1f}}}$ (eq 23)")
     ax.set_xlabel(r"$\omega$ (rad/s)")
     ax.set_ylabel(f"{label} PSD $C(\\omega)$ ({unit})")

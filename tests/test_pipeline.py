@@ -137,7 +137,7 @@ def test_coupled_force_is_the_force_at_the_current_indentation(device, algorithm
     block's lanes share each step's sum, on the CPU one thread does it all."""
     from mdroll.ensemble.force import prepare_lines
     from mdroll.ensemble.coupled import coupled_series
-    from mdroll.validation.formulas import edge_force
+    from mdroll.validation.references import edge_force
 
     p = Params(L=0.03, dx=20e-6, h0=2e-6, H=0.5)
     lines = rough_lines(p, seed=5, realizations=2, device=device)

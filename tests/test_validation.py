@@ -12,7 +12,7 @@ import pytest
 from reference import psd, to_numpy
 
 from mdroll import Params, contact_force, rough_lines
-from mdroll.validation import formulas
+from mdroll.validation.references import edge_quadratic_force
 from mdroll.validation.checks import (CheckResult, Spectra, force_spectra, modulation_period_measured, paired_ratio,
                                       period_averaged_slope, period_bands, resonance_peak)
 from mdroll.validation.report import format_table, slug
@@ -80,7 +80,7 @@ def test_validation_ensemble_on_every_device(device):
     q, C = psd(direct, p.dx)
     # FFT rounding differs between devices: bins far below the peak compare at 1e-12 of the peak
     np.testing.assert_allclose(s.mean["direct"][1:], C.mean(axis=0)[1:], rtol=1e-9, atol=1e-12 * C.max())
-    _, C48 = psd(formulas.edge_quadratic_force(p, lines), p.dx)
+    _, C48 = psd(edge_quadratic_force(p, lines), p.dx)
     np.testing.assert_allclose(s.mean["eq48"][1:], C48.mean(axis=0)[1:], rtol=1e-9, atol=1e-12 * C48.max())
     assert s.rows["direct"].shape == (3, np.searchsorted(q, 8.5 * p.q_min, side="right"))
     assert s.max_tree_direct <= 1e-12 * p.F_N

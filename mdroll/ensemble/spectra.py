@@ -9,11 +9,10 @@ scaled to mean(w^2) = 1, which keeps the total power.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from ..devices import cupy_stream, cupy_view, is_cuda, to_warp, warp
+from ..devices import array_module, cupy_stream, cupy_view, is_cuda, to_warp, warp
+from ..physics import TWO_PI, euler_resonance_phase, hann_window, psd_from_transform
 from ..params import Params
 from ..kernels.spectra import SUM_COLUMNS
 from .fft import rfft_rows
@@ -21,12 +20,7 @@ from .fft import rfft_rows
 
 def wavenumbers(steps: int, dx: float, xp=np):
     """``q_k = 2 pi k / (N dx)`` (rad/m) for k = 0..N/2, as a NumPy (default) or CuPy (``xp``) array."""
-    return 2.0 * math.pi * xp.arange(steps // 2 + 1) / (steps * dx)
-
-
-def _hann(steps: int, xp):
-    w = 0.5 - 0.5 * xp.cos(2.0 * math.pi * xp.arange(steps) / steps)
-    return w / xp.sqrt(xp.mean(w * w))
+    return TWO_PI * xp.arange(steps // 2 + 1) / (steps * dx)
 
 
 def psd_rows(series, dx: float, device: str, window: bool = False):
@@ -38,21 +32,13 @@ def psd_rows(series, dx: float, device: str, window: bool = False):
             x = cupy_view(series)
             x = x - x.mean(axis=1, keepdims=True)
             if window:
-                x = x * _hann(x.shape[1], xp)
-            spectrum = rfft_rows(x, device)
-            n = x.shape[1]
-            return (n * dx / (2.0 * math.pi)) * (xp.abs(spectrum) / n) ** 2
+                x = x * hann_window(x.shape[1], xp)
+            return psd_from_transform(rfft_rows(x, device), x.shape[1], dx)
     x = np.asarray(series.numpy() if hasattr(series, "numpy") else series)
     x = x - x.mean(axis=1, keepdims=True)
     if window:
-        x = x * _hann(x.shape[1], np)
-    n = x.shape[1]
-    return (n * dx / (2.0 * math.pi)) * (np.abs(rfft_rows(x, device)) / n) ** 2
-
-
-def array_module(array):
-    """``cupy`` for a CuPy array, else ``numpy``."""
-    return __import__("cupy") if type(array).__module__.startswith("cupy") else np
+        x = x * hann_window(x.shape[1], np)
+    return psd_from_transform(rfft_rows(x, device), x.shape[1], dx)
 
 
 def array_rows(array, device: str):
@@ -107,7 +93,7 @@ def series_sums(deviation, params: Params, device: str, decoupled: bool):
     threads = SUMMARY_THREADS if is_cuda(device) else 1
     if decoupled:
         weights = wp.empty(steps, dtype=wp.vec2d, device=device)
-        phi = 2.0 * math.asin(0.5 * params.omega_0 * params.dt)
+        phi = euler_resonance_phase(params.omega_0, params.dt)
         wp.launch(euler_impulse_response, dim=steps, inputs=[phi, params.dt, weights], device=device)
     else:
         weights = wp.empty(1, dtype=wp.vec2d, device=device)
@@ -145,7 +131,7 @@ def psd_moments_of_batch(force, accel, sums, params: Params, device: str, window
         psd_moments_kernel(accel is None, bool(window)),
         dim=bins,
         inputs=[force_spectrum, accel_spectrum, to_warp(sums, device), steps,
-                params.dx / (2.0 * math.pi * steps), params.omega_0**2, params.dt, 1.0 / params.m,
+                params.dx / (TWO_PI * steps), params.omega_0**2, params.dt, 1.0 / params.m,
                 force_moments, accel_moments, not_finite],
         device=device,
     )

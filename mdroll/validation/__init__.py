@@ -1,1 +1,1 @@
-"""Analytic formulas of the thesis (one function per equation) and the checks against ensembles."""
+"""The checks of the thesis's analytic predictions (closed forms in :mod:`mdroll.physics`) against ensembles, and reference solutions in array code (:mod:`.references`)."""

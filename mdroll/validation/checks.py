@@ -26,9 +26,11 @@ from ..ensemble import measure
 # the band statistics live in mdroll.ensemble.measure, shared with the studies
 from ..ensemble.measure import Z_SIGMA, binned_ratio, independent_ratio, paired_ratio, period_bands
 from ..ensemble.pipeline import default_batch, progress_bar, run_ensemble
-from ..ensemble.spectra import RunningMoments, array_module, array_rows, psd_rows, to_host, wavenumbers
+from ..devices import array_module
+from ..ensemble.spectra import RunningMoments, array_rows, psd_rows, to_host, wavenumbers
+from .. import physics
 from ..params import Params
-from . import formulas
+from .references import edge_quadratic_force
 
 @dataclass
 class CheckResult:
@@ -119,7 +121,7 @@ def force_spectra(params: Params, seed: int, n_real: int, algorithms=("tree",), 
         lines = rough_lines(params, seed, idx, device=device)
         series = {alg: contact_force(lines, params, alg, "periodic", device=device) for alg in algorithms}
         if eq48:
-            series["eq48"] = formulas.edge_quadratic_force(params, array_rows(lines, device))
+            series["eq48"] = edge_quadratic_force(params, array_rows(lines, device))
         if "tree" in series and "direct" in series:
             diff = array_rows(series["tree"], device) - array_rows(series["direct"], device)
             max_diff = max(max_diff, float(abs(diff).max()))
@@ -245,7 +247,7 @@ def check_eq40(ens: Ensembles) -> list[CheckResult]:
     ratio first leaves +-10 %, for direct and for edge (eq 49 overshoots the high band)."""
     s = ens.base()
     p = s.params
-    predicted = formulas.force_psd_high_band(p, s.q)
+    predicted = physics.force_psd_high_band(s.q, p.lambda_A, p.H, p.q_min, p.q_max, p.E_star, p.a)
     mask = _high_band(s)
     ratio, rel = paired_ratio(s.band_sums("direct", mask), predicted[mask].sum())
     departures = {name: _first_departure(s, name, predicted) / p.q_min for name in ("direct", "edge")}
@@ -283,8 +285,8 @@ def low_band_levels(spectra: Spectra, name: str) -> np.ndarray:
     one factor over q < q_min/2, times its q -> 0 limit."""
     p = spectra.params
     mask = _low_band(spectra)
-    predicted = formulas.force_psd_low_band(p, spectra.q[mask]).sum()
-    return spectra.band_sums(name, mask) / predicted * formulas.force_psd_low_band_limit(p)
+    predicted = physics.force_psd_low_band(spectra.q[mask], p.psd(wavenumbers(p.n_points, p.dx)), p.dq, p.E_star, p.R, p.a).sum()
+    return spectra.band_sums(name, mask) / predicted * physics.force_psd_low_band_limit(p.E_star, p.R, p.h0, p.H, p.a, p.q_min)
 
 
 def check_low_band(ens: Ensembles) -> list[CheckResult]:
@@ -294,10 +296,10 @@ def check_low_band(ens: Ensembles) -> list[CheckResult]:
     p = s.params
     mask = _low_band(s)
     predicted = np.zeros_like(s.q)
-    predicted[mask] = formulas.force_psd_low_band(p, s.q[mask])
+    predicted[mask] = physics.force_psd_low_band(s.q[mask], p.psd(wavenumbers(p.n_points, p.dx)), p.dq, p.E_star, p.R, p.a)
     shape, rel_shape = paired_ratio(s.band_sums("direct", mask), predicted[mask].sum())
     near_zero = (s.q > 0) & (s.q * p.a <= 0.3)  # cos^2(q a) >= 0.91
-    limit = formulas.force_psd_low_band_limit(p) * np.cos(s.q * p.a) ** 2
+    limit = physics.force_psd_low_band_limit(p.E_star, p.R, p.h0, p.H, p.a, p.q_min) * np.cos(s.q * p.a) ** 2
     zero, rel_zero = paired_ratio(s.band_sums("direct", near_zero), limit[near_zero].sum())
     plot = _spectrum_plot(s.q, [("direct", s.mean["direct"], s.stderr["direct"]), ("closed form", predicted, None)],
                           marks=[("pi/(2a)", math.pi / (2 * p.a)), ("q_min/2", p.q_min / 2)])
@@ -322,7 +324,7 @@ def check_eq58(ens: Ensembles) -> list[CheckResult]:
     p = base.params
     levels = low_band_levels(base, "direct")
     level, rel = paired_ratio(levels, 1.0)
-    eq58 = formulas.force_psd_plateau_thesis(p)
+    eq58 = physics.force_psd_plateau_thesis(p.E_star, p.R, p.h0, p.H, p.a, p.q_min)
     out = [CheckResult("eq 58 factor", "eq 56/58", eq58 / level, 10.0, 0.20 + Z_SIGMA * rel, "relative", "-",
                        "eq 58 / measured q->0 plateau: the thesis's normalization against physics.md's (expected ~10)",
                        details={"plateau_measured_N2m": level, "plateau_eq58_N2m": eq58})]
@@ -335,7 +337,7 @@ def check_eq58(ens: Ensembles) -> list[CheckResult]:
     out.append(CheckResult("eq 58 h0^4", "eq 58", ratio, 16.0, 0.10 + Z_SIGMA * rel_ratio, "relative", "-",
                            "plateau at 2 h0 / at h0, same lines scaled (eq 58: x16)"))
     hursts = (0.3, 0.5, 0.7, 0.9)
-    per_h = {h: (levels if h == p.H else low_band_levels(ens.variant(H=h), "tree")) / (0.277 + h) ** 2 for h in hursts}
+    per_h = {h: (levels if h == p.H else low_band_levels(ens.variant(H=h), "tree")) / (physics.THESIS_HURST_OFFSET + h) ** 2 for h in hursts}
     common = np.exp(np.mean([np.log(v.mean()) for v in per_h.values()]))
     spread = {h: paired_ratio(v, common) for h, v in per_h.items()}
     worst = max(hursts, key=lambda h: abs(spread[h][0] - 1.0))
@@ -343,7 +345,7 @@ def check_eq58(ens: Ensembles) -> list[CheckResult]:
         "eq 58 H", "eq 58", spread[worst][0], 1.0, 0.15 + Z_SIGMA * max(r for _, r in spread.values()), "relative", "-",
         f"plateau / (0.277 + H)^2 over H = {hursts}, relative to their geometric mean; worst at H = {worst}",
         details={"H": list(hursts), "reduced_relative": [spread[h][0] for h in hursts],
-                 "factor_eq58_over_measured": [formulas.force_psd_plateau_thesis(p.replace(H=h)) / (per_h[h].mean() * (0.277 + h) ** 2)
+                 "factor_eq58_over_measured": [physics.force_psd_plateau_thesis(p.E_star, p.R, p.h0, h, p.a, p.q_min) / (per_h[h].mean() * (physics.THESIS_HURST_OFFSET + h) ** 2)
                                                for h in hursts]}))
     return out
 
@@ -375,7 +377,7 @@ def check_eq23(ens: Ensembles) -> list[CheckResult]:
         s = ens.variant(H=hurst)
         name = "direct" if "direct" in s.mean else "tree"
         slope = period_averaged_slope(s, name, 1.5 * s.params.q_min, 8 * s.params.q_min)
-        out.append(CheckResult(f"eq 23 slope H={hurst}", "eq 23", slope, formulas.power_law_exponent(s.params), 0.1,
+        out.append(CheckResult(f"eq 23 slope H={hurst}", "eq 23", slope, physics.power_law_exponent(s.params.H), 0.1,
                                "absolute", "-", f"least-squares slope of the period-averaged {name} PSD on [1.5, 8] q_min",
                                plot=_spectrum_plot(s.q, [(name, s.mean[name], s.stderr[name])],
                                                    marks=[("1.5 q_min", 1.5 * s.params.q_min), ("8 q_min", 8 * s.params.q_min)])))
@@ -394,7 +396,7 @@ def check_eq26(ens: Ensembles) -> list[CheckResult]:
     s = ens.base()
     measured = modulation_period_measured(s, "direct")
     dq = s.q[1] - s.q[0]
-    return [CheckResult("eq 26 modulation", "eq 26", measured, formulas.modulation_period(s.params), 0.01, "relative",
+    return [CheckResult("eq 26 modulation", "eq 26", measured, physics.modulation_period(s.params.a), 0.01, "relative",
                         "rad/m", f"autocorrelation of C_F q^(2H+3) on [q_min, 24 q_min], bin width {dq:.3g} rad/m",
                         plot=_spectrum_plot(s.q, [("direct C_F q^(2H+3)", s.mean["direct"] * s.q ** (2 * s.params.H + 3), None)],
                                             ylabel="C_F q^(2H+3)", marks=[("q_min", s.params.q_min)]))]
@@ -411,7 +413,7 @@ def check_resonance(ens: Ensembles) -> list[CheckResult]:
     p = coupled.params
     peak = resonance_peak(coupled)
     dw = coupled.omega[1] - coupled.omega[0]
-    return [CheckResult("resonance", "sec 4.2", peak, formulas.resonance_frequency(p), 0.01, "relative", "rad/s",
+    return [CheckResult("resonance", "sec 4.2", peak, p.omega_0, 0.01, "relative", "rad/s",
                         f"peak of the coupled acceleration PSD, bin width {dw:.3g} rad/s "
                         f"({100 * dw / p.omega_0:.2f} % of omega_0); contact lost in {coupled.contact_lost_steps} steps",
                         plot=_spectrum_plot(coupled.omega, [("coupled", coupled.accel_psd, coupled.accel_psd_stderr),
@@ -427,7 +429,7 @@ def check_eq28(ens: Ensembles) -> list[CheckResult]:
     double = ens.variant(h0=2 * p.h0)
     mask = _high_band(base)
     ratio, rel = paired_ratio(double.band_sums("tree", mask), base.band_sums("tree", mask))
-    return [CheckResult("eq 28 h0^2", "eq 28", ratio, formulas.h0_scaling(p.h0, 2 * p.h0), 0.05 + Z_SIGMA * rel,
+    return [CheckResult("eq 28 h0^2", "eq 28", ratio, physics.h0_scaling(p.h0, 2 * p.h0), 0.05 + Z_SIGMA * rel,
                         "relative", "-", "high band [q_min, 8 q_min] at 2 h0 / at h0, same seed",
                         plot=_spectrum_plot(base.q, [("h0", base.mean["tree"], None), ("2 h0", double.mean["tree"], None),
                                                      ("4 x h0", 4 * base.mean["tree"], None)]))]
