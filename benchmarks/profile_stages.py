@@ -3,7 +3,7 @@ sub-step timed alone, the device synchronized around it, median of 3.
 
     python benchmarks/profile_stages.py --algorithm edge --out profile.json
 
-It calls the same functions as ``run_ensemble`` in the same order; benchmarks/NOTES.md records
+It calls the same functions as ``run_ensemble`` in the same order; docs/performance.md records
 the numbers and what they point at.
 """
 

@@ -5,7 +5,7 @@ the refinement exponent (``mdroll bench --full``'s sweep) per band_limit.
 
 Each point is ``mdroll.bench.force_time``: median of repeats on fresh lines, device synchronized.
 The defaults in ``mdroll/ensemble/force.py`` (DEFAULT_LEAF_SIZE, DEFAULT_BAND_LIMIT) come from
-this study; benchmarks/NOTES.md records its numbers.
+this study; docs/performance.md records its numbers.
 """
 
 import argparse

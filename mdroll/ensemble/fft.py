@@ -32,7 +32,7 @@ def _pyfftw():
 def fast_length(limit: int) -> int:
     """The largest ``2^a 3^b 5^c <= limit`` (limit >= 1): a length both cuFFT and FFTW transform
     at full speed. On an H200, cuFFT's real FFT of 300 rows of 1,046,492 = 4 x 397 x 659 points
-    took 17.5 ms, of 1,036,800 = 2^10 3^4 5^2 points 5.3 ms (benchmarks/results/cufft_probe_H200.json)."""
+    took 17.5 ms, of 1,036,800 = 2^10 3^4 5^2 points 5.3 ms (docs/performance.md, v5)."""
     if limit < 1:
         raise ValueError(f"limit = {limit!r}: it must be at least 1")
     best = 1
@@ -70,7 +70,7 @@ def irfft_rows(spectrum, n: int, device: str):
     ``spectrum`` is a Warp ``vec2d`` array (or complex NumPy/CuPy array) on ``device``; on CUDA
     the transform overwrites it. On CUDA the cached cuFFT plan runs on the spectrum's own memory:
     CuPy's ``irfft`` would first copy a view like this one, and scale by 1/n in a second pass,
-    ~1.8 ms of the 7.1 it took at 300 x 2^20 on an H200 (benchmarks/results/generate_probe_H200.json).
+    ~1.8 ms of the 7.1 it took at 300 x 2^20 on an H200 (docs/performance.md, v7c).
     Returns a float64 NumPy array on the CPU, a float64 Warp array on CUDA.
     """
     wp = warp()

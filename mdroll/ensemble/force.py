@@ -20,7 +20,7 @@ from .fft import fast_length
 ALGORITHMS = ("tree", "direct", "edge")
 BOUNDARIES = ("open", "periodic")
 #: Springs per tree leaf: 32 was fastest at thesis scale on the H200 (14.6 ms vs 15.8 for 8;
-#: benchmarks/results/tree_tuning_H200_v4b.json).
+#: docs/performance.md, v4).
 DEFAULT_LEAF_SIZE = 32
 #: Band width (springs a side, from a row's root bounds) above which the tree kernel's main path
 #: descends the tree instead of summing the narrowed bands directly (kernels/tree.py). On an
@@ -131,8 +131,8 @@ def _prefix_sums(lines, device):
     One inclusive scan over the whole batch laid end to end, out of place (Warp's
     ``array_scan``: CUB's device scan on CUDA, a sequential loop on the CPU): 1.5 ms at
     300 x 2^20 on an H200, against 3.0 ms for ``cupy.cumsum`` into an output (a copy, then the
-    scan in place) and 8.2 ms row by row (benchmarks/results/host_probe_H200.json,
-    build_probe_H200.json). Row r is the view of the flat prefix from element r n, rows
+    scan in place) and 8.2 ms row by row (docs/performance.md,
+    v6a). Row r is the view of the flat prefix from element r n, rows
     overlapping by one element, so S[r, 0] is the sum of the rows before it: every kernel reads
     differences S_j - S_i only, and each line's mean is zero, so that offset stays near rounding
     size (a wrapped periodic copy's few extra springs add ~1e-5 m a row).

@@ -115,7 +115,7 @@ def random_phase_spectrum(
 
     Launched over ``(R, ceil(bins / 2))``: thread j makes modes 2j and 2j + 1, whose hashes and
     sines overlap (1.65 -> 1.50 ms at 300 x 2^19 modes on an H200,
-    benchmarks/results/stage_probe_H200_v4.json).
+    docs/performance.md, v7f).
     """
     r, j = wp.tid()
     k = 2 * j

@@ -132,8 +132,8 @@ def series_summary(
 
     Each thread loads ``SUMMARY_LOADS`` steps before it adds them (in order, so the sums are
     those of one step at a time): with one load in flight per thread the pass read 1.5 TB/s on
-    an H200, with four 2.6 TB/s, with eight 2.7 TB/s (benchmarks/results/stage_probe_H200.json,
-    _v3, _v4).
+    an H200, with four 2.6 TB/s, with eight 2.7 TB/s (docs/performance.md,
+    v7a and v7e).
     """
     r, t = wp.tid()
     sums = wp.vec4d()
@@ -255,7 +255,7 @@ def psd_moments_kernel(decoupled: bool, window: bool) -> wp.Kernel:
     compiled apart (``wp.static``), so a kernel carries neither branch nor registers of the
     others (decoupled without window, 300 x 518,401 bins on an H200: 1.50 ms for one kernel of
     every mode, 1.19 ms for its own with two rows at a time, 1.10 ms with four;
-    benchmarks/results/stage_probe_H200_v2.json, _v3, _v4).
+    docs/performance.md, v7b to v7e).
 
     Launched over the bins k, it writes per bin the mean and M2 (sum of squared deviations)
     over the rows of the two-sided PSDs ``C(q_k) = psd_scale |B_k|^2`` of the force (N^2 m) and

@@ -57,7 +57,7 @@ from .common import (
 LEVEL_BITS = wp.constant(5)
 #: Register cap of the main kernel: 128 lets 16 warps share a streaming multiprocessor. On an
 #: H100, thesis scale took 9.8 ms against 14.2 uncapped (255) or 160, and 11.7 at 96
-#: (benchmarks/NOTES.md, v8).
+#: (docs/performance.md, v8).
 TREE_MAX_REGISTERS = 128
 #: A lifted height (m) below every indenter depth: a masked spring's displacement is negative.
 NO_CONTACT = wp.constant(wp.float64(-1.0e300))

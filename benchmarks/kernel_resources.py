@@ -1,6 +1,8 @@
-"""Registers and local memory (spills, stacks) of mdroll's compiled CUDA kernels.
+"""How many registers and how much local memory (spills, stacks) do mdroll's CUDA kernels take?
+The question behind the tree kernel's cap of 128 registers: at 255 registers it ran 8 warps a
+multiprocessor (docs/performance.md, v8).
 
-    python benchmarks/probes/kernel_resources.py [--match tree] [--out resources.json]
+    python benchmarks/kernel_resources.py [--match tree] [--out resources.json]
 
 Runs each force algorithm once on a small CUDA problem so that Warp compiles its modules, then
 loads every cubin/PTX in Warp's kernel cache whose name contains ``--match`` with CuPy and prints
@@ -16,7 +18,7 @@ import re
 import cupy
 import warp as wp
 
-from mdroll import Params, contact_force
+from mdroll import ALGORITHMS, Params, contact_force
 from mdroll.ensemble.lines import rough_lines
 
 
@@ -27,7 +29,7 @@ def main() -> None:
     args = parser.parse_args()
     p = Params(L=0.04, dx=10e-6)
     lines = rough_lines(p, 1, 4, "cuda:0")
-    for algorithm in ("direct", "tree", "edge"):
+    for algorithm in ALGORITHMS:
         contact_force(lines, p, algorithm, "periodic", device="cuda:0")
     wp.synchronize()
     record = {}
