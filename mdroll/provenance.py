@@ -12,7 +12,7 @@ from .devices import warp
 
 def environment(device: str) -> dict:
     """Device, its name, mdroll / Warp / NumPy / Python (and CuPy, CUDA runtime) versions, platform, date."""
-    from . import __version__
+    from ._version import __version__
 
     wp = warp()
     info = {
