@@ -96,10 +96,16 @@ class EnsembleSpec:
                             progress=progress, **options)
 
 
-def run_specs(specs: Iterable[EnsembleSpec], device: str = "auto", progress: bool = False, **options) -> list:
-    """Run every spec in order, one after the other on ``device``; the results in the specs' order.
+def run_specs(specs: Iterable[EnsembleSpec], device: str = "auto", progress: bool = False, runner=None,
+              **options) -> list:
+    """Every spec's result, in the specs' order: the sweep runner of the studies, the checks and
+    the bootstraps (``options`` go to :meth:`EnsembleSpec.run`).
 
-    The sweep runner of the studies, the checks and the bootstraps (``options`` go to
-    :meth:`EnsembleSpec.run`).
+    ``runner=None`` runs the specs one after the other in this process, on ``device``. A runner
+    object with the same ``run_specs(specs, device, progress, **options)`` method runs them
+    elsewhere: :class:`mdroll.distributed.DaskRunner` spreads them over a Dask cluster (there
+    ``device`` is resolved on each worker). The results are the same to rounding either way.
     """
+    if runner is not None:
+        return runner.run_specs(specs, device=device, progress=progress, **options)
     return [spec.run(device=device, progress=progress, **options) for spec in specs]
