@@ -102,6 +102,9 @@ def _parser() -> argparse.ArgumentParser:
     p_run.add_argument("--memory-limit", type=float, metavar="GIB", help="cap the memory batches are sized from (GiB)")
     p_run.add_argument("--window", action="store_true", default=None, help="Hann window before the FFT")
     p_run.add_argument("--resume", metavar="DIR", help="continue the interrupted run in DIR (its checkpoint.npz)")
+    p_run.add_argument("--workers", type=int, metavar="N", help="run on a local Dask cluster of N worker processes "
+                       "(one per GPU on a GPU machine, --device cpu for CPU processes)")
+    p_run.add_argument("--scheduler", metavar="ADDRESS", help="run on an existing Dask cluster (tcp://host:8786)")
     output(p_run)
 
     p_val = sub.add_parser("validate", help="check the thesis's analytic formulas against ensembles; exit 1 on a failure")
@@ -177,6 +180,8 @@ def cmd_run(args) -> int:
     from .ensemble.checkpoint import CHECKPOINT, read_checkpoint
     from .ensemble.pipeline import run_ensemble
 
+    if args.workers is not None or args.scheduler is not None:
+        return _run_distributed(args)
     device = resolve_device(args.device)
     if args.resume:
         out = Path(args.resume)
@@ -196,6 +201,32 @@ def cmd_run(args) -> int:
     result = run_ensemble(params, realizations=realizations, device=device, batch=args.batch,
                           progress=not args.no_progress, checkpoint=out / CHECKPOINT, resume=bool(args.resume),
                           memory_limit=memory, **settings)
+    write_outputs(result, out)
+    return 0
+
+
+def _run_distributed(args) -> int:
+    """``mdroll run --workers N | --scheduler ADDRESS``: the run's units on a Dask cluster; every
+    finished unit is kept in OUT/units, from which ``--resume OUT`` continues."""
+    from .distributed import DaskRunner, connect, saved_specs
+    from .ensemble.spec import EnsembleSpec
+
+    if args.resume:
+        out = Path(args.resume)
+        (spec,) = saved_specs(out / "units")
+    else:
+        params = build_params(args)
+        settings = {k: v if getattr(args, k) is None else getattr(args, k) for k, v in RUN_DEFAULTS.items()}
+        indices = _realizations(args, params)
+        if not isinstance(indices, range):
+            raise UsageError(f"--realizations {args.realizations}: the number of realizations must be at least 1")
+        spec = EnsembleSpec(params, first=indices.start, realizations=len(indices), **settings)
+        out = _output_dir(args)
+    # a local cluster pins one worker to each GPU, which it then sees as its own cuda:0
+    device = args.device if args.scheduler is not None or args.device == "cpu" else "auto"
+    with connect(args.workers, args.scheduler, args.device) as client:
+        runner = DaskRunner(client, checkpoint=out / "units")
+        (result,) = runner.run_specs([spec], device=device, progress=not args.no_progress)
     write_outputs(result, out)
     return 0
 

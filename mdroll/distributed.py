@@ -24,19 +24,23 @@ renames it into place, so concurrent compilation by several workers is safe.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import uuid
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from .ensemble.pipeline import EnsembleResult
+from .ensemble.result import EnsembleResult
 from .ensemble.spec import EnsembleSpec
 from .params import ParameterError
 
 #: Units per worker when the unit size is not given: small enough to balance the load and to
 #: lose little work when a worker dies, large enough that a unit fills a batch.
 UNITS_PER_WORKER = 4
+#: A local cluster listens on the loopback interface only: it serves no one outside this machine.
+LOOPBACK = "127.0.0.1"
 
 
 @dataclass(frozen=True)
@@ -105,8 +109,9 @@ class DaskRunner:
         todo = [u for u in units if u.uid not in done]
         bar = _progress(len(units), progress)
         bar.update(len(units) - len(todo))
-        futures = {self.client.submit(run_unit, u.spec, device, options, key=f"mdroll-unit-{u.uid}-{u.spec.key()[:16]}",
-                                      pure=False): u for u in todo}
+        run = uuid.uuid4().hex[:12]  # keys of this call only: a cancelled earlier run's keys never collide
+        futures = {self.client.submit(run_unit, u.spec, device, options, key=f"mdroll-unit-{run}-{u.uid}"): u
+                   for u in todo}
         try:
             for future in as_completed(futures):
                 unit = futures[future]
@@ -116,8 +121,9 @@ class DaskRunner:
                 bar.update(1)
         finally:
             bar.close()
-            for future in futures:
-                future.cancel()
+            for future in futures:  # after an error or an interrupt: stop what is still queued
+                if not future.done():
+                    future.cancel()
         return [EnsembleResult.merge([done[u.uid] for u in units if u.spec_index == i]) for i in range(len(specs))]
 
     # -- checkpoint: one file per finished unit, and a manifest naming the run's specs
@@ -179,7 +185,7 @@ def local_cluster(workers: int, device: str = "auto"):
 
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ParameterError(f"workers = {workers!r} is not allowed: it must be a positive integer")
-    gpus = _gpu_count() if device != "cpu" else 0
+    gpus = gpu_count() if device != "cpu" else 0
     if device.startswith("cuda") and gpus == 0:
         raise ParameterError(f"device = {device!r}: no GPU is visible to start GPU workers on")
     if gpus and workers > gpus:
@@ -191,13 +197,47 @@ def local_cluster(workers: int, device: str = "auto"):
         env = {"OMP_NUM_THREADS": "1"}
         env["CUDA_VISIBLE_DEVICES"] = ordinals[w] if gpus else ""
         spec[f"mdroll-{w}"] = {"cls": Nanny, "options": {"nthreads": 1, "env": env, "memory_limit": 0,
-                                                          "dashboard_address": None}}
-    scheduler = {"cls": Scheduler, "options": {"dashboard_address": None}}
+                                                          "host": LOOPBACK, "dashboard": False}}
+    scheduler = {"cls": Scheduler, "options": {"host": LOOPBACK, "dashboard": False,
+                                                   "dashboard_address": f"{LOOPBACK}:0"}}
     cluster = SpecCluster(workers=spec, scheduler=scheduler, silence_logs=40)
     return Client(cluster)
 
 
-def _gpu_count() -> int:
+@contextlib.contextmanager
+def connect(workers: int | None = None, scheduler: str | None = None, device: str = "auto"):
+    """A client for the duration of a ``with`` block: a :func:`local_cluster` of ``workers``
+    processes (closed at the end), or the existing cluster at ``scheduler`` (an address such as
+    ``tcp://host:8786``; left running)."""
+    from distributed import Client
+
+    if (workers is None) == (scheduler is None):
+        raise ParameterError("give either workers (a local cluster) or scheduler (an existing cluster), not both")
+    if scheduler is not None:
+        try:
+            client = Client(scheduler, timeout="10s")
+        except OSError as exc:
+            raise ParameterError(f"scheduler = {scheduler!r}: cannot connect ({exc})") from None
+        with client:
+            yield client
+        return
+    client = local_cluster(workers, device)
+    try:
+        yield client
+    finally:
+        client.close()
+        client.cluster.close()
+
+
+def saved_specs(checkpoint) -> list[EnsembleSpec]:
+    """The specs of the distributed run whose units are in the directory ``checkpoint``."""
+    manifest = Path(checkpoint) / "manifest.json"
+    if not manifest.is_file():
+        raise ParameterError(f"{checkpoint}: no manifest.json of a distributed run there to continue from")
+    return [EnsembleSpec.from_dict(d) for d in json.loads(manifest.read_text())["specs"]]
+
+
+def gpu_count() -> int:
     """GPUs visible to this process, without creating a CUDA context in it (workers must start
     theirs after being pinned): from ``CUDA_VISIBLE_DEVICES`` or the NVIDIA driver's device
     nodes."""

@@ -101,3 +101,23 @@ def test_checkpoint_resumes_only_missing_units(client, reference, tmp_path):
     other = [EnsembleSpec(Params(L=0.1), seed=8, realizations=2)]
     with pytest.raises(ParameterError, match="another distributed run"):
         runner.run_specs(other, device="cpu")
+
+
+def test_cli_workers_equal_one_process(tmp_path, capsys):
+    from mdroll.cli import main
+    from mdroll.ensemble.result import EnsembleResult
+
+    common = ["run", "--set", "L=0.1", "--realizations", "4", "--first", "2", "--seed", "5", "--device", "cpu",
+              "--no-progress"]
+    assert main(common + ["--out", str(tmp_path / "local")]) == 0
+    assert main(common + ["--workers", "2", "--out", str(tmp_path / "dask")]) == 0
+    assert_same([EnsembleResult.load(tmp_path / "dask" / "spectra.npz")],
+                [EnsembleResult.load(tmp_path / "local" / "spectra.npz")])
+    assert len(list((tmp_path / "dask" / "units").glob("unit-*.npz"))) == 4  # 4 realizations, 2 workers
+    # the finished units are kept: resuming recomputes nothing and gives the same spectra
+    assert main(["run", "--resume", str(tmp_path / "dask"), "--workers", "2", "--device", "cpu", "--no-progress"]) == 0
+    capsys.readouterr()
+    for bad, named in [(["--workers", "0"], "workers"), (["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "not both")]:
+        assert main(common + bad + ["--out", str(tmp_path / "bad")]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and named in err[0]
