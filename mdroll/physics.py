@@ -27,6 +27,10 @@ import numpy as np
 #: 2 pi, the one Python copy (Warp kernels derive their ``wp.constant`` from it).
 TWO_PI = math.tau
 
+#: ``1 / sqrt(3/8)``: the periodic Hann window ``0.5 - 0.5 cos(2 pi s / n)`` has mean square 3/8
+#: (n >= 3); this factor scales it to 1 (:func:`hann_window`, and the kernels' windowed spectra).
+HANN_NORM = math.sqrt(8.0 / 3.0)
+
 #: The empirical Hurst offset of the thesis's low-band fits, eq 56, 58 and 60: ``(0.277 + H)``.
 THESIS_HURST_OFFSET = 0.277
 
@@ -200,14 +204,14 @@ def lambda_A_continuum(h0, H, q_min):
 
 # ---------------------------------------------------------------------------------- spectra
 def hann_window(n, xp=np):
-    """Section 6 (Hann window): ``w_s = 0.5 - 0.5 cos(2 pi s / n)``, s = 0..n-1, scaled to
-    ``mean(w^2) = 1`` (the factor ``1 / sqrt(3/8)`` for n > 1), which keeps a series' total power.
+    """Section 6 (Hann window): ``w_s = (0.5 - 0.5 cos(2 pi s / n)) HANN_NORM``, s = 0..n-1, the
+    periodic Hann window scaled by :data:`HANN_NORM` to ``mean(w^2) = 1`` (exactly so for n >= 3),
+    which keeps a series' total power.
 
     Parameters: ``n`` samples; ``xp`` the array module (numpy, or cupy on CUDA).
     Returns w (dimensionless, shape (n,)).
     """
-    w = 0.5 - 0.5 * xp.cos(TWO_PI * xp.arange(n) / n)
-    return w / xp.sqrt(xp.mean(w * w))
+    return (0.5 - 0.5 * xp.cos(TWO_PI * xp.arange(n) / n)) * HANN_NORM
 
 
 def psd_from_transform(transform, n, dx):

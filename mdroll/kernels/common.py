@@ -13,6 +13,8 @@ of squares stay exact (int64) instead of cancelling large absolute positions in 
 
 import warp as wp
 
+from .. import physics
+
 #: int32 stack of tree nodes for the explicit-stack traversal (see ``tree.py`` for the bound).
 TREE_STACK_CAPACITY = wp.constant(32)
 tree_stack = wp.types.vector(length=32, dtype=wp.int32)
@@ -25,6 +27,9 @@ MAX_CLOSED_FORM_OFFSET = 100_000
 
 #: 1/6, rounded to float64 (a Warp literal without the wrapper would be float32).
 ONE_SIXTH = wp.constant(wp.float64(1.0 / 6.0))
+
+#: 2 pi in float64 for the kernels, from the one Python value (:data:`mdroll.physics.TWO_PI`).
+TWO_PI = wp.constant(wp.float64(physics.TWO_PI))
 
 
 @wp.func

@@ -5,7 +5,7 @@ All work on a batch of R lines stored as rows of a 2D float64 array.
 
 import warp as wp
 
-TWO_PI = wp.constant(wp.float64(6.283185307179586))
+from .common import TWO_PI
 
 #: splitmix64 constants (Steele, Lea & Flood 2014): the golden-ratio increment and the two
 #: multipliers of its output mix.

@@ -9,9 +9,11 @@ import functools
 
 import warp as wp
 
-TWO_PI = wp.constant(wp.float64(6.283185307179586))
+from .. import physics
+from .common import TWO_PI
+
 #: 1 / sqrt(3/8): scales the Hann window to mean square 1, which keeps the total power.
-HANN_NORM = wp.constant(wp.float64(1.632993161855452))
+HANN_NORM = wp.constant(wp.float64(physics.HANN_NORM))
 #: Threads sharing one series in :func:`series_summary` on CUDA; their partial sums are added
 #: in a fixed order, so the result does not depend on scheduling.
 SUMMARY_THREADS = 1024
