@@ -6,6 +6,7 @@ Usage errors print one line on stderr, no traceback, and exit with code 2.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import datetime
 import json
@@ -102,9 +103,7 @@ def _parser() -> argparse.ArgumentParser:
     p_run.add_argument("--memory-limit", type=float, metavar="GIB", help="cap the memory batches are sized from (GiB)")
     p_run.add_argument("--window", action="store_true", default=None, help="Hann window before the FFT")
     p_run.add_argument("--resume", metavar="DIR", help="continue the interrupted run in DIR (its checkpoint.npz)")
-    p_run.add_argument("--workers", type=int, metavar="N", help="run on a local Dask cluster of N worker processes "
-                       "(one per GPU on a GPU machine, --device cpu for CPU processes)")
-    p_run.add_argument("--scheduler", metavar="ADDRESS", help="run on an existing Dask cluster (tcp://host:8786)")
+    cluster_options(p_run)
     output(p_run)
 
     p_val = sub.add_parser("validate", help="check the thesis's analytic formulas against ensembles; exit 1 on a failure")
@@ -205,10 +204,32 @@ def cmd_run(args) -> int:
     return 0
 
 
+def cluster_options(p) -> None:
+    """``--workers N`` and ``--scheduler ADDRESS``: where a command's ensembles run (mdroll.distributed)."""
+    p.add_argument("--workers", type=int, metavar="N", help="run on a local Dask cluster of N worker processes "
+                   "(one per GPU on a GPU machine, --device cpu for CPU processes)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="run on an existing Dask cluster (tcp://host:8786)")
+
+
+@contextlib.contextmanager
+def cluster_runner(args, checkpoint=None):
+    """The runner that ``--workers``/``--scheduler`` ask for (a :class:`mdroll.distributed.DaskRunner`
+    for ``run_specs(..., runner=)``), or None to run in this process; and the device the
+    ensembles then run on (a local cluster pins one worker to each GPU, which it sees as cuda:0)."""
+    if args.workers is None and args.scheduler is None:
+        yield None, args.device
+        return
+    from .distributed import DaskRunner, connect
+
+    device = args.device if args.scheduler is not None or args.device == "cpu" else "auto"
+    with connect(args.workers, args.scheduler, args.device) as client:
+        yield DaskRunner(client, checkpoint=checkpoint), device
+
+
 def _run_distributed(args) -> int:
     """``mdroll run --workers N | --scheduler ADDRESS``: the run's units on a Dask cluster; every
     finished unit is kept in OUT/units, from which ``--resume OUT`` continues."""
-    from .distributed import DaskRunner, connect, saved_specs
+    from .distributed import saved_specs
     from .ensemble.spec import EnsembleSpec
 
     if args.resume:
@@ -222,10 +243,7 @@ def _run_distributed(args) -> int:
             raise UsageError(f"--realizations {args.realizations}: the number of realizations must be at least 1")
         spec = EnsembleSpec(params, first=indices.start, realizations=len(indices), **settings)
         out = _output_dir(args)
-    # a local cluster pins one worker to each GPU, which it then sees as its own cuda:0
-    device = args.device if args.scheduler is not None or args.device == "cpu" else "auto"
-    with connect(args.workers, args.scheduler, args.device) as client:
-        runner = DaskRunner(client, checkpoint=out / "units")
+    with cluster_runner(args, checkpoint=out / "units") as (runner, device):
         (result,) = runner.run_specs([spec], device=device, progress=not args.no_progress)
     write_outputs(result, out)
     return 0
