@@ -80,6 +80,17 @@ def hertz_force(d, E_star, R):
     return 4.0 * E_star * a * a * a / (3.0 * R)
 
 
+def indenter_profile(x, R):
+    """Eq 7: the MDR-transformed profile of the paraboloid ``f(r) = r^2 / (2 R)``, ``g(x) = x^2 / R``
+    (twice the original parabola, eq 5-7): spring x lies g(x) below the indenter's tip.
+
+    Parameters: ``x`` distance from the wheel centre (m, any shape), ``R`` radius (m). Returns g (m).
+    ``indenter_profile(dx, R) = dx^2 / R`` is the kernels' curvature in spring units: spring l
+    is lowered by ``(dx^2 / R) (l - c)^2``.
+    """
+    return x * x / R
+
+
 def spring_stiffness(E_star, dx):
     """Section 2 (spring stiffness): stiffness of one MDR spring, ``k = E* dx`` (eq 11-12).
 
@@ -125,7 +136,7 @@ def edge_coefficient(E_star, R, a):
 
 
 def contact_window_transform(q, a):
-    """Eq 38-39 (contact window): Fourier transform of the indicator of the contact [-a, a],
+    """Eq 38: Fourier transform of the contact window, the indicator of [-a, a],
     ``W(q) = integral_{-a}^{a} exp(-i q x) dx = 2 sin(q a) / q`` (``2 a`` at q = 0).
 
     The MDR contact filters the line linearly through it: a roughness mode of amplitude B(q)
