@@ -23,6 +23,7 @@ def test_defaults_and_derived_against_hand_values():
     assert p.dt == pytest.approx(5e-7)
     assert p.q_max == pytest.approx(math.pi / 5e-6)
     assert p.springs_in_contact == pytest.approx(2026, rel=1e-3)
+    assert p.dq == pytest.approx(2 * math.pi / 5.0, rel=1e-15)
 
 
 def test_lambda_A_discrete_normalization_and_continuum_limit():

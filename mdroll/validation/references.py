@@ -32,10 +32,10 @@ def edge_quadratic_force(params: Params, lines, d: float | None = None):
     ``c = E* R / (4 a)`` (:func:`mdroll.physics.edge_coefficient`) and ``a = sqrt(d R)``, d = d0
     (eq 14-15) unless given (m). Below q_min this is the whole force fluctuation up to constants
     (physics.md section 7)."""
-    a = physics.contact_radius(params.d0 if d is None else d, params.R)
+    a = float(physics.contact_radius(params.d0 if d is None else d, params.R))
     right = heights_at(lines, a, params.dx)
     left = heights_at(lines, -a, params.dx)
-    return physics.edge_coefficient(params.E_star, params.R, a) * (right * right + left * left)
+    return float(physics.edge_coefficient(params.E_star, params.R, a)) * (right * right + left * left)
 
 
 def edge_force(params: Params, lines, d: float | None = None):
@@ -49,7 +49,7 @@ def edge_force(params: Params, lines, d: float | None = None):
     """
     xp = array_module(lines)
     d = params.d0 if d is None else d
-    a = physics.contact_radius(d, params.R)
+    a = float(physics.contact_radius(d, params.R))
     dx = params.dx
     whole = math.floor(a / dx)
     # trapezoid rule over springs s - whole .. s + whole from a running sum of the wrapped line
@@ -65,5 +65,7 @@ def edge_force(params: Params, lines, d: float | None = None):
     partial = a / dx - whole
     ends = 0.5 * partial * ((right_0 + right_1) + (left_0 + left_1))
     integral = dx * (middle + ends)
-    return (physics.hertz_force(d, params.E_star, params.R) + params.E_star * integral
-            + physics.edge_coefficient(params.E_star, params.R, a) * (right_1**2 + left_1**2))
+    # plain Python floats as scalars, so that CuPy rows stay CuPy arrays without relying on NumPy-scalar dispatch
+    hertz = float(physics.hertz_force(d, params.E_star, params.R))
+    coefficient = float(physics.edge_coefficient(params.E_star, params.R, a))
+    return hertz + params.E_star * integral + coefficient * (right_1**2 + left_1**2)
