@@ -63,3 +63,42 @@ def psd(series, dx, window=False):
     B = np.fft.rfft((series - series.mean(axis=-1, keepdims=True)) * w, axis=-1) / n
     q = 2 * np.pi * np.arange(n // 2 + 1) / (n * dx)
     return q, n * dx / (2 * np.pi) * np.abs(B) ** 2
+
+
+def contact_reach(h, params, d):
+    """M_i, the largest integer m >= 0 with ``h_i + d - (dx^2/R) m^2 > 0`` evaluated as the direct
+    sum evaluates u (eq 10), -1 where ``h_i + d <= 0`` (physics.md section 4, sweep)."""
+    kappa = params.dx**2 / params.R
+    level = h + d
+    m = np.floor(np.sqrt(np.maximum(level, 0.0) / kappa)).astype(np.int64)
+    for _ in range(4):  # the square root may round either way: settle the last integer exactly
+        m = np.where((m >= 0) & (level - kappa * m * m <= 0.0), m - 1, m)
+        m = np.where(level - kappa * (m + 1) * (m + 1) > 0.0, m + 1, m)
+    assert np.all(level - kappa * m * m > 0.0) or np.all((level - kappa * m * m > 0.0) | (m < 0))
+    return np.where(level > 0.0, m, -1)
+
+
+def sweep_force(h, params, wheel, d):
+    """F(c) (N) for the wheel at the consecutive springs ``wheel`` of the line h by the sweep with
+    difference arrays: spring i touches for c in [i - M_i, i + M_i], so the totals over the
+    contact set (count, sum h, sum i, sum i^2) are cumulative sums of +1 events at ``i - M_i`` and
+    -1 events at ``i + M_i + 1``, and F = k (sum h + N d - kappa sum (i - c)^2) (eq 10-12)."""
+    kappa = params.dx**2 / params.R
+    reach = contact_reach(h, params, d)
+    i = np.nonzero(reach >= 0)[0]
+    m = reach[i]
+    lo = int((i - m).min())
+    size = int((i + m).max()) + 2 - lo
+    quantities = (np.ones_like(i), h[i], i, i * i)
+    totals = []
+    for q in quantities:
+        diff = np.zeros(size, dtype=np.asarray(q).dtype)
+        np.add.at(diff, i - m - lo, q)
+        np.add.at(diff, i + m + 1 - lo, -q)
+        totals.append(np.cumsum(diff))
+    c = np.asarray(wheel, dtype=np.int64)
+    at = np.clip(c - lo, 0, size - 1)
+    inside = (c >= lo) & (c < lo + size)
+    count, heights, first, second = (np.where(inside, t[at], 0) for t in totals)
+    squares = second - 2 * c * first + c * c * count  # exact int64
+    return params.E_star * params.dx * (heights + count * d - kappa * squares)

@@ -123,14 +123,21 @@ def reach_strict(level: wp.float64, curvature: wp.float64) -> int:
     """Largest m >= 0 with ``curvature m^2 < level``; -1 if level <= 0.
 
     With ``level = d + min h`` every spring at most this far from the wheel is in contact
-    whatever h is: the certainly-full core.
+    whatever h is: the certainly-full core. With ``level = h_i + d`` it is the sweep's reach
+    M_i of spring i: the same test ``fl(h_i + d) > fl(fl(curvature m) m)`` that decides
+    ``max(u, 0) > 0`` in :func:`spring_sum` (eq 10).
+
+    A float32 square root guesses m (relative error below 2e-7, so within 0.02 of the root for
+    the offsets up to ``MAX_CLOSED_FORM_OFFSET``); the float64 tests then settle it, moving it
+    by at most one either way. Unbounded ``while`` loops instead cost 44 ns a call in Warp's CPU
+    code against 5 (the sweep evaluates this twice a step).
     """
     if level <= wp.float64(0.0):
         return -1
-    m = int(wp.floor(wp.sqrt(level / curvature)))
-    while m >= 0 and curvature * wp.float64(m) * wp.float64(m) >= level:
+    m = int(wp.sqrt(wp.float32(level) / wp.float32(curvature)))
+    if curvature * wp.float64(m) * wp.float64(m) >= level:
         m -= 1
-    while curvature * wp.float64(m + 1) * wp.float64(m + 1) < level:
+    if curvature * wp.float64(m + 1) * wp.float64(m + 1) < level:
         m += 1
     return m
 

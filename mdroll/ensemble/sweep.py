@@ -1,0 +1,93 @@
+"""Host side of the sweep force (:mod:`mdroll.kernels.sweep`): tile size, fixed-point scale, launch.
+
+The sweep is exact and O(n) at a fixed indentation d (physics.md section 4). It reads the lines,
+their prefix sums (eq 18) and the row bounds ``(min h, max h)`` of a :class:`PreparedLines`.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..devices import is_cuda, warp
+from ..params import Params
+
+#: CUDA: lanes a block and the smallest tile (steps a block). A lane scans ``tile / lanes``
+#: consecutive bins; the tile's bins take 32 bytes of shared memory a step.
+CUDA_BLOCK_DIM = 128
+CUDA_MIN_TILE = 1024
+#: CPU: Warp runs a block as one lane; a longer tile reads the anchors' bands less often.
+CPU_MIN_TILE = 4096
+#: A tile spans at least this many times the widest band (springs whose contact at the tile's
+#: start is uncertain, one side): the band is read 2 + 2 x T / band times a tile, so the work a
+#: step stays O(1) as the band grows under refinement.
+TILE_PER_BAND = 4
+#: The largest tile: its bins take 32 x 4096 = 128 KiB, half the CPU arena of Warp 1.19, and of the
+#: 227 KiB of shared memory of an H100/H200 block.
+MAX_TILE = {"cpu": 4096, "cuda": 4096}
+#: Partial sums of the fixed-point heights stay below 2^62 (int64 holds 2^63).
+FIXED_POINT_BITS = 62
+
+
+def reach_strict(level: float, curvature: float) -> int:
+    """Largest m >= 0 with ``curvature m^2 < level`` (-1 if level <= 0): the host twin of
+    :func:`mdroll.kernels.common.reach_strict`, the reach M of a spring with ``h + d = level``."""
+    if level <= 0:
+        return -1
+    m = int(math.floor(math.sqrt(level / curvature)))
+    while m >= 0 and curvature * m * m >= level:
+        m -= 1
+    while curvature * (m + 1) * (m + 1) < level:
+        m += 1
+    return m
+
+
+def sweep_tile(band: int, device: str, tile_steps: int | None = None, block_dim: int | None = None) -> tuple[int, int]:
+    """``(tile_steps, block_dim)`` for a widest band of ``band`` springs: by default the smallest
+    power of two >= max(minimum tile, TILE_PER_BAND x band), capped at MAX_TILE."""
+    cuda = is_cuda(device)
+    if block_dim is None:
+        block_dim = CUDA_BLOCK_DIM if cuda else 1
+    if tile_steps is None:
+        wanted = max(CUDA_MIN_TILE if cuda else CPU_MIN_TILE, TILE_PER_BAND * band, block_dim)
+        tile_steps = min(1 << (wanted - 1).bit_length(), MAX_TILE["cuda" if cuda else "cpu"])
+    return tile_steps, block_dim
+
+
+def fixed_scale(h_abs: float, tile_steps: int, outer: int) -> float:
+    """``2^K`` (1/m), the largest power of two for which ``round(h 2^K)`` summed over every event
+    of a tile stays below ``2^62``: a tile adds at most ``2 T + 4 (outer + 1)`` heights (entries,
+    exits and the anchor's bands), each at most ``h_abs`` (m) in size."""
+    events = 2 * tile_steps + 4 * (max(outer, 0) + 1)
+    if h_abs <= 0.0:
+        return 2.0**1000  # a flat line: every height rounds to 0 anyway
+    exponent = math.floor(FIXED_POINT_BITS - math.log2(h_abs * events))
+    return math.ldexp(1.0, min(exponent, 1000))
+
+
+def sweep_command(prepared, params: Params, d: float, device: str, out=None, offset: float = 0.0,
+                  tile_steps: int | None = None, block_dim: int | None = None):
+    """The sweep's force launch, recorded (``wp.Launch``; run with ``.launch()``), and the
+    (R, steps) array it writes: ``F - offset`` (N) at indentation d (m) for every step.
+
+    ``prepared`` needs ``lines``, ``prefix`` and ``bounds`` (see
+    :func:`mdroll.ensemble.force.prepare_lines`); ``tile_steps`` and ``block_dim`` override the
+    defaults of :func:`sweep_tile` (the force is the same to rounding whatever they are).
+    """
+    from ..kernels.sweep import sweep_kernel
+
+    wp = warp()
+    p = prepared
+    rows = p.lines.shape[0]
+    force = out if out is not None else wp.empty((rows, p.steps), dtype=wp.float64, device=device)
+    curvature = params.dx**2 / params.R
+    bounds = p.bounds.numpy()
+    h_low, h_high = float(bounds[:, 0].min()), float(bounds[:, 1].max())
+    outer = reach_strict(d + h_high, curvature)
+    band = outer - max(reach_strict(d + h_low, curvature), 0)
+    tile, lanes = sweep_tile(band, device, tile_steps, block_dim)
+    scale = fixed_scale(max(abs(h_low), abs(h_high)), tile, outer)
+    inputs = [p.lines, p.prefix, p.bounds, p.n_work, p.first, p.steps, d, curvature, scale, params.k_spring, offset,
+              force]
+    command = wp.launch_tiled(sweep_kernel(tile, lanes), dim=(rows, -(-p.steps // tile)), inputs=inputs,
+                              block_dim=lanes, device=device, record_cmd=True)
+    return command, force

@@ -1,0 +1,217 @@
+"""Sweep, exact in O(n) at fixed indentation (physics.md section 4; not in the thesis).
+
+With ``curvature = dx^2 / R`` spring i touches the wheel centred on spring c iff
+``|i - c| <= M_i``, M_i the largest integer m >= 0 with ``h_i + d - curvature m^2 > 0``
+(none if ``h_i + d <= 0``): M_i is :func:`reach_strict` of the level ``h_i + d``, the same
+floating-point test ``fl(h_i + d) > fl(fl(curvature m) m)`` that decides ``max(u, 0) > 0`` in
+the direct sum's ``spring_sum`` (a fused multiply-add there can move the decision only for
+``|u|`` within an ulp of the level, where the spring adds nothing measurable). So spring i is in
+contact for the wheel positions ``c in [i - M_i, i + M_i]`` and the force (eq 10-12)
+
+    F(c) = k ( sum_{C(c)} h_i + N(c) d - curvature sum_{C(c)} (i - c)^2 ),   C(c) = {i : |i - c| <= M_i}
+
+follows from four totals over C(c): the count N, sum h, and, with offsets ``m = i - c0`` from a
+fixed origin c0, ``P1 = sum m`` and ``P2 = sum m^2``, since ``sum (i - c)^2 = P2 - 2 t P1 + t^2 N``
+for ``t = c - c0`` (exact integers). Each spring changes them twice: it enters at
+``c = i - M_i`` and leaves after ``c = i + M_i``.
+
+Design (per block: one row and a tile of T consecutive steps, ``c0 = first + tile T``):
+
+1. *Anchor at c0*: the springs with ``curvature m^2 < d + min h`` (the row's bounds) touch
+   whatever h is: the core ``|m| <= core``, a closed form (count, prefix sums S_j of eq 18,
+   ``sum m^2``), as in the tree's kernel; each of the ambiguous band springs
+   (``core < |m| <= outer``, ``outer`` the M of the row's highest spring) that touches adds
+   itself to bin 0.
+2. *Events in the tile*: each spring whose entry ``i - M_i`` or exit ``i + M_i + 1`` falls in
+   ``(c0, c0 + T)`` adds ``+-(1, h, m, m^2)`` to the bin of that step (springs
+   ``c0 + 1 + core .. c0 + T - 1 + outer`` enter, ``c0 - outer .. c0 + T - 2 - core`` leave:
+   ``T + outer - core`` each), by a block-level scatter into shared memory
+   (``wp.tile_scatter_add``).
+3. *Scan*: each lane sums its ``T / block_dim`` consecutive bins; a Hillis-Steele scan over the
+   lanes' totals (ping-pong shared tiles) gives each lane the totals before its bins; the lane
+   then runs through its steps and writes ``F - offset``.
+
+Every total is an exact int64 integer: h enters as the fixed-point ``round(h 2^K)`` with
+``2^K = fixed_scale`` chosen by the launcher so that no partial sum of a tile passes 2^62, so
+the result does not depend on the order of the atomic adds or of the scan (deterministic,
+bitwise the same for any block_dim), and the float64 part is the core's prefix-sum difference
+alone: no rounding accumulates along the tile. The fixed-point rounding is at most
+``2^-(K+1)`` m a spring (K ~ 66 at the defaults: ~1e-20 m against the ~7e-14 m of 1e-12 F_N).
+
+Work per step: ``2 (T + outer - core) / T`` spring reads, each with one reach (a float32
+square root as first guess, made exact by float64 tests) and at most one scatter, plus
+``2 (outer - core) / T`` for the anchor and ``1 / T`` of the closed form; O(1) per step and per
+spring for ``T >> outer - core`` (the launcher grows T with the band), so O(n) per line at any
+resolution.
+
+Floor (300 x 2^20 steps, float64): each spring is read from memory once (8 B; its second read,
+as an exit ``2 M ~ 2000`` springs later, is in a tile of the same row that runs at about the
+same time, an L2 hit) and each force written once (8 B): 16 B a step, 5.0 GB, 1.27 ms at the
+H200's 3.96 TB/s, the same bytes as the edge kernel (eq 49: one prefix read and one write a
+step), which takes 2.55 ms. The arithmetic is ~2.2 reaches (~12 float64 operations each) and
+~2.2 x 4 int64 shared-memory atomics a step, ~0.3 ms of the H200's float64 rate: the kernel
+is bound by memory latency and synchronisation, not by either floor. The build adds the row
+bounds (one pass over the lines, 0.65 ms) to the edge's prefix sums.
+
+On the CPU Warp runs a block as one lane (block_dim 1): the same code is then a sequential
+sweep over the tile, one spring read twice and one bin per step.
+"""
+
+import functools
+
+import warp as wp
+
+from .common import reach_strict, sum_of_squares
+
+#: The four exact totals of a bin or a contact set: (count, sum round(h 2^K), sum m, sum m^2).
+totals4 = wp.types.vector(length=4, dtype=wp.int64)
+
+
+@wp.func
+def spring_totals(h: wp.float64, m: int, fixed_scale: wp.float64) -> totals4:
+    """``(1, round(h 2^K), m, m^2)`` of one spring at offset m from the tile's origin."""
+    offset = wp.int64(m)
+    return totals4(wp.int64(1), wp.int64(wp.round(h * fixed_scale)), offset, offset * offset)
+
+
+@wp.func
+def force_of_totals(
+    totals: totals4,
+    core_heights: wp.float64,
+    t: int,
+    d: wp.float64,
+    curvature: wp.float64,
+    inverse_scale: wp.float64,
+    k_spring: wp.float64,
+    offset: wp.float64,
+) -> wp.float64:
+    """``F - offset`` (N) for the wheel t steps past the tile's origin: eq 10-12 summed over the
+    contact set, ``k (sum h + N d - curvature (P2 - 2 t P1 + t^2 N))``, with ``core_heights`` the
+    core's sum of h (m) and the rest of sum h in ``totals[1]`` (units of 2^-K m)."""
+    shift = wp.int64(t)
+    squares = totals[3] - wp.int64(2) * shift * totals[2] + shift * shift * totals[0]
+    heights = core_heights + wp.float64(totals[1]) * inverse_scale
+    return k_spring * (heights + wp.float64(totals[0]) * d - curvature * wp.float64(squares)) - offset
+
+
+@functools.cache
+def sweep_kernel(tile_steps: int, block_dim: int):
+    """The sweep kernel for tiles of ``tile_steps`` steps and blocks of ``block_dim`` lanes
+    (``tile_steps`` a multiple of ``block_dim``, ``block_dim`` a power of two; block_dim 1 on
+    the CPU). Launched by ``wp.launch_tiled`` over ``(R, ceil(steps / tile_steps))``."""
+    if block_dim < 1 or block_dim & (block_dim - 1) or tile_steps % block_dim:
+        raise ValueError(f"tile_steps = {tile_steps} must be a multiple of block_dim = {block_dim}, a power of two")
+    T = tile_steps
+    BD = block_dim
+    S = T // BD  # bins a lane scans
+    SCAN_ROUNDS = BD.bit_length() - 1
+
+    @wp.kernel(module="unique")
+    def contact_force_sweep(
+        lines: wp.array2d(dtype=wp.float64),
+        prefix: wp.array2d(dtype=wp.float64),
+        bounds: wp.array(dtype=wp.vec2d),
+        n: int,
+        first: int,
+        steps: int,
+        d: wp.float64,
+        curvature: wp.float64,
+        fixed_scale: wp.float64,
+        k_spring: wp.float64,
+        offset: wp.float64,
+        force: wp.array2d(dtype=wp.float64),
+    ):
+        """``force[r, s] = F - offset`` (N): F (eq 10-12) with the wheel at spring ``first + s``
+        of row r, indentation d (m), for the steps s of this block's tile."""
+        r, tile, lane = wp.tid()
+        s0 = tile * T
+        c0 = first + s0
+        box = bounds[r]
+        core = reach_strict(d + box[0], curvature)  # every spring reaches this far (-1: none surely)
+        outer = reach_strict(d + box[1], curvature)  # no spring reaches farther
+        near = wp.max(core, 0)
+        bins = wp.tile_zeros(shape=T, dtype=totals4, storage="shared")
+
+        # 1. the band springs in contact at c0 go to bin 0: right c0+core+1 .. c0+outer, left
+        # c0-outer .. c0-near-1 (the core's closed form is added per step below)
+        right = wp.max(outer - core, 0)
+        band = right + wp.max(outer - near, 0)
+        for start in range(0, band, BD):
+            j = start + lane
+            i = c0 + core + 1 + j
+            if j >= right:
+                i = c0 - outer + j - right
+            value = totals4()
+            touches = False
+            if j < band and i >= 0 and i < n:
+                h = lines[r, i]
+                m = i - c0
+                touches = wp.abs(m) <= reach_strict(h + d, curvature)
+                value = spring_totals(h, m, fixed_scale)
+            wp.tile_scatter_add(bins, 0, value, touches)
+
+        # 2. entries (bin i - M - c0) and exits (bin i + M + 1 - c0) inside the tile
+        spread = wp.max(T - 1 + outer - near, 0)
+        for start in range(0, spread, BD):
+            j = start + lane
+            i = c0 + 1 + near + j
+            value = totals4()
+            at = int(0)
+            enters = False
+            if j < spread and i < n:
+                h = lines[r, i]
+                reach = reach_strict(h + d, curvature)
+                at = i - reach - c0
+                enters = reach >= 0 and at >= 1 and at < T
+                value = spring_totals(h, i - c0, fixed_scale)
+            wp.tile_scatter_add(bins, at, value, enters)
+        for start in range(0, spread, BD):
+            j = start + lane
+            i = c0 - outer + j
+            value = totals4()
+            at = int(0)
+            leaves = False
+            if j < spread and i >= 0 and i < n:
+                h = lines[r, i]
+                reach = reach_strict(h + d, curvature)
+                at = i + reach + 1 - c0
+                leaves = reach >= 0 and at >= 1 and at < T
+                value = -spring_totals(h, i - c0, fixed_scale)
+            wp.tile_scatter_add(bins, at, value, leaves)
+
+        # 3. scan: this lane's bins lane*S .. lane*S+S-1, after the totals of the lanes before
+        own = totals4()
+        for k in range(S):
+            own = own + bins[lane * S + k]
+        inclusive = own
+        ping = wp.tile_zeros(shape=BD, dtype=totals4, storage="shared")
+        pong = wp.tile_zeros(shape=BD, dtype=totals4, storage="shared")
+        ping[lane] = inclusive
+        shift = int(1)
+        for level in range(SCAN_ROUNDS):
+            if level % 2 == 0:
+                if lane >= shift:
+                    inclusive = inclusive + ping[lane - shift]
+                pong[lane] = inclusive
+            else:
+                if lane >= shift:
+                    inclusive = inclusive + pong[lane - shift]
+                ping[lane] = inclusive
+            shift *= 2
+        running = inclusive - own
+        # the core at c0, |m| <= core: count, sum m = 0, sum m^2, and its sum of h from the
+        # prefix sums (eq 18), the one float64 total
+        core_heights = wp.float64(0.0)
+        if core >= 0:
+            running = running + totals4(wp.int64(2 * core + 1), wp.int64(0), wp.int64(0),
+                                        wp.int64(sum_of_squares(-core, core)))
+            core_heights = prefix[r, c0 + core + 1] - prefix[r, c0 - core]
+        inverse_scale = wp.float64(1.0) / fixed_scale
+        for k in range(S):
+            t = lane * S + k
+            running = running + bins[t]
+            s = s0 + t
+            if s < steps:
+                force[r, s] = force_of_totals(running, core_heights, t, d, curvature, inverse_scale, k_spring, offset)
+
+    return contact_force_sweep

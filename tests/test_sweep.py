@@ -1,0 +1,135 @@
+"""The sweep (physics.md section 4): exact in O(n) at fixed d, against the direct sum (eq 10-12)."""
+
+import numpy as np
+import pytest
+from reference import contact_reach, direct_force, sweep_force, to_numpy
+
+from mdroll import Params, contact_force, rough_lines, step_range
+from mdroll.ensemble.force import _prefix_sums, prepare_lines
+from mdroll.ensemble.sweep import sweep_command
+
+SMALL = Params(L=0.03, dx=20e-6)  # 1500 springs, a/dx = 253
+
+
+def _sweep(lines, p, boundary, d, device, tile_steps=None, block_dim=None, h_max=None):
+    prepared = prepare_lines(lines, p, "direct", boundary, d, device, h_max=h_max)  # the row bounds
+    prepared.prefix, prepared.prefix_owner = _prefix_sums(prepared.lines, device)
+    command, force = sweep_command(prepared, p, d, device, tile_steps=tile_steps, block_dim=block_dim)
+    command.launch()
+    return to_numpy(force)
+
+
+@pytest.mark.parametrize("H,h0", [(0.3, 5e-6), (0.7, 0.5e-6), (0.9, 2e-6)])
+def test_numpy_sweep_equals_numpy_direct_sum(H, h0):
+    """The difference-array sweep (tests/reference.py) against the brute-force spring sum, both
+    NumPy, periodic line (three copies side by side), d != d0."""
+    p = SMALL.replace(H=H, h0=h0)
+    line = to_numpy(rough_lines(p, seed=2, realizations=1, device="cpu"))[0]
+    tiled = np.tile(line, 3)
+    wheel = p.n_points + np.arange(p.n_points)
+    for d in (p.d0, 0.6 * p.d0):
+        direct = direct_force(tiled, p, wheel * p.dx, d)
+        assert np.max(np.abs(sweep_force(tiled, p, wheel, d) - direct)) <= 1e-14 * p.F_N
+
+
+def test_reach_is_the_direct_sums_contact_decision(device):
+    """The kernels' reach M (float32 guess, float64 tests) equals NumPy's largest m with
+    ``h + d - kappa m^2 > 0``, at random levels and at levels on and next to ``kappa m^2``, where
+    the last integer is decided by rounding."""
+    import warp as wp
+
+    from mdroll.kernels.common import reach_strict
+
+    @wp.kernel
+    def reaches(level: wp.array(dtype=wp.float64), curvature: wp.float64, out: wp.array(dtype=int)):
+        i = wp.tid()
+        out[i] = reach_strict(level[i], curvature)
+
+    p = Params(dx=5e-6)
+    kappa = p.dx**2 / p.R
+    rng = np.random.default_rng(5)
+    m = rng.integers(0, 100_000, 3000)
+    edges = kappa * m * m
+    levels = np.concatenate([rng.uniform(-1e-5, kappa * 1e10, 3000), edges, np.nextafter(edges, np.inf),
+                             np.nextafter(edges, -np.inf), [0.0, -0.0, 5e-324]])
+    out = wp.empty(levels.size, dtype=int, device=device)
+    wp.launch(reaches, dim=levels.size, inputs=[wp.array(levels, dtype=wp.float64, device=device), kappa, out],
+              device=device)
+    np.testing.assert_array_equal(out.numpy(), contact_reach(levels, p, 0.0))
+
+
+@pytest.mark.parametrize("boundary", ["open", "periodic"])
+@pytest.mark.parametrize("H", [0.3, 0.7, 0.9])
+@pytest.mark.parametrize("h0", [0.5e-6, 5e-6])
+def test_sweep_equals_direct(device, boundary, H, h0):
+    p = Params(L=0.04, dx=10e-6, H=H, h0=h0)
+    lines = rough_lines(p, seed=7, realizations=3, device=device)
+    for d in (p.d0, 0.8 * p.d0):
+        direct = to_numpy(contact_force(lines, p, "direct", boundary, d=d, device=device))
+        assert np.max(np.abs(_sweep(lines, p, boundary, d, device) - direct)) <= 1e-12 * p.F_N
+
+
+@pytest.mark.parametrize("boundary", ["open", "periodic"])
+def test_sweep_with_gaps_shallow_indentation_and_odd_lines(device, boundary):
+    """h0 = 5 um and d = 3 um < max h: the contact breaks into patches and the wheel loses it;
+    an odd number of springs; against the independent NumPy references."""
+    p = Params(L=0.03002, dx=20e-6, h0=5e-6, H=0.3)  # 1501 springs
+    assert p.n_points % 2 == 1
+    lines = to_numpy(rough_lines(p, seed=3, realizations=2, device="cpu"))
+    # the second pair of lines lowered until only their highest peaks reach the wheel at d = 3 um
+    lines = np.concatenate([lines, lines - lines.max(axis=1, keepdims=True) - 1e-6])
+    for d in (p.d0, 3e-6):
+        force = _sweep(lines, p, boundary, d, device)
+        first, steps = step_range(p, boundary, d, lines.max())
+        for r in range(4):
+            if boundary == "open":
+                ref = direct_force(lines[r], p, (first + np.arange(steps)) * p.dx, d)
+            else:
+                ref = direct_force(np.tile(lines[r], 3), p, (p.n_points + np.arange(steps)) * p.dx, d)
+            assert np.max(np.abs(force[r] - ref)) <= 1e-12 * p.F_N
+    assert np.min(force[2:]) == 0.0 < np.max(force[2:])  # the wheel lost contact, and found it again
+
+
+@pytest.mark.parametrize("boundary", ["open", "periodic"])
+def test_tiny_line(device, boundary):
+    """The shortest line Params allows (L = 4a) on a coarse grid: 207 springs, 101 of them in
+    contact, 100 open steps."""
+    p = Params(L=0.0207, dx=100e-6, h0=1e-6, H=0.9)
+    lines = rough_lines(p, seed=9, realizations=2, device=device)
+    direct = to_numpy(contact_force(lines, p, "direct", boundary, device=device))
+    assert np.max(np.abs(_sweep(lines, p, boundary, p.d0, device) - direct)) <= 1e-12 * p.F_N
+
+
+@pytest.mark.parametrize("dx", [5e-6, 20e-6])
+def test_smooth_line_gives_hertz_force(device, dx):
+    # the bound of test_force.py: (F_sum - F_Hertz)/F_Hertz in [-1/4, 1/8] (dx/a)^2, within 0.26 (dx/a)^2
+    p = Params(L=0.03, dx=dx)
+    force = _sweep(np.zeros((1, p.n_points)), p, "periodic", p.d0, device)
+    assert np.max(np.abs(force / p.F_N - 1)) <= 0.26 * (p.dx / p.a) ** 2
+    assert np.ptp(force) == 0.0
+
+
+def test_same_force_whatever_the_tile_the_block_or_the_batch(device):
+    """Tiles of 16 steps to the default, blocks of 1 to 8 lanes (on the CPU through Warp's
+    cooperative CPU blocks; 64 to 256 on CUDA), three lines at once or one by one: the same
+    force to 1e-12 F_N."""
+    import warp as wp
+
+    p = SMALL.replace(h0=2e-6)
+    lines = to_numpy(rough_lines(p, seed=4, realizations=3, device="cpu"))
+    d = 0.9 * p.d0
+    reference = _sweep(lines, p, "open", d, device)
+    direct = to_numpy(contact_force(lines, p, "direct", "open", d=d, device=device))
+    assert np.max(np.abs(reference - direct)) <= 1e-12 * p.F_N
+    variants = [(16, 1), (64, 8)] if device == "cpu" else [(256, 64), (512, 256), (2048, 128)]
+    enabled = wp.config.enable_cpu_blocks
+    wp.config.enable_cpu_blocks = True
+    try:
+        for tile_steps, block_dim in variants:
+            force = _sweep(lines, p, "open", d, device, tile_steps, block_dim)
+            assert np.max(np.abs(force - reference)) <= 1e-12 * p.F_N, (tile_steps, block_dim)
+    finally:
+        wp.config.enable_cpu_blocks = enabled
+    # one by one, with the batch's wheel positions (h_max): each line's own bounds and scale
+    alone = np.concatenate([_sweep(lines[r:r + 1], p, "open", d, device, h_max=lines.max()) for r in range(3)])
+    assert np.max(np.abs(alone - reference)) <= 1e-12 * p.F_N
