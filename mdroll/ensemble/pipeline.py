@@ -1,7 +1,7 @@
 """The ensemble pipeline: lines -> force -> wheel response -> spectra -> running means, batch by batch.
 
 :func:`run_ensemble` composes the parts, each in its own module: the force algorithms
-(:mod:`.force`), the coupled dynamics (:mod:`.coupled`), the spectra (:mod:`.spectra`), batch
+(:mod:`.force`), the coupled dynamics (:mod:`.coupled`), the spectra (:mod:`~mdroll.ensemble.spectra`), batch
 sizing (:mod:`.batching`), the accumulated totals and their checkpoint (:mod:`.checkpoint`) and
 the result (:mod:`.result`). Here: the batch loop, its stage clock and the progress bar.
 """

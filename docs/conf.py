@@ -1,0 +1,105 @@
+"""Sphinx configuration of mdroll's documentation site.
+
+Build (warnings are errors): ``python -m sphinx -W -b html docs docs/_build/html``. The pages are
+MyST Markdown, the API reference is generated from the docstrings (autosummary + numpydoc), the
+CLI reference from the argument parser (sphinx-argparse), and the gallery's examples run during
+the build on CPU-sized inputs (sphinx-gallery). MathJax is copied into the build
+(sphinx-mathjax-offline), so the site reads offline from the build directory.
+"""
+
+import os
+import re
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # the checkout's mdroll, installed or not
+os.environ.setdefault("MPLBACKEND", "agg")
+
+import mdroll  # noqa: E402
+
+project = "mdroll"
+author = "the mdroll developers"
+copyright = "2026, the mdroll developers"
+release = version = mdroll.__version__
+
+extensions = [
+    "myst_parser",
+    "numpydoc",
+    "sphinx.ext.autodoc",
+    "sphinx.ext.autosummary",
+    "sphinx.ext.mathjax",
+    "sphinxarg.ext",
+    "sphinx_gallery.gen_gallery",
+    "sphinx-mathjax-offline",
+]
+
+source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
+exclude_patterns = ["_build", "examples"]
+suppress_warnings = ["myst.header"]
+
+# MyST: $...$ and $$...$$ math, \begin{equation} blocks, heading anchors for links
+myst_enable_extensions = ["dollarmath", "amsmath", "colon_fence"]
+myst_heading_anchors = 3
+
+# API reference: one page per public name, numpydoc sections without its style checks
+autosummary_generate = True
+autosummary_imported_members = False
+autodoc_default_options = {"members": True, "show-inheritance": False}
+autodoc_member_order = "bysource"
+autodoc_typehints = "none"
+numpydoc_show_class_members = False
+numpydoc_validation_checks = set()
+numpydoc_xref_param_type = False
+
+# the gallery: every plot_*.py of docs/examples runs during the build (CPU, seconds each)
+sphinx_gallery_conf = {
+    "examples_dirs": "examples",
+    "gallery_dirs": "auto_examples",
+    "filename_pattern": r"/plot_",
+    "download_all_examples": False,
+    "remove_config_comments": True,
+    "within_subsection_order": "FileNameSortKey",
+    "reset_modules": ("matplotlib",),
+    "show_memory": False,
+    "min_reported_time": 1,
+    "write_computation_times": False,
+}
+
+html_theme = "pydata_sphinx_theme"
+html_title = f"mdroll {release}"
+html_theme_options = {
+    "navigation_with_keys": False,
+    "header_links_before_dropdown": 7,
+    "show_toc_level": 2,
+    "secondary_sidebar_items": ["page-toc"],
+    "footer_start": ["copyright"],
+    "footer_end": [],
+}
+html_show_sourcelink = False
+# the single pages have no section navigation: give their width to the text
+html_sidebars = {page: [] for page in ("index", "physics", "performance", "validation", "cli")}
+html_context = {"default_mode": "light"}
+
+
+# The docstrings write formulas as plain text ("|q|^(-2H-1)", "max |F_tree - F_direct|"), where
+# reStructuredText would read "|...|" as a substitution: make "|" literal outside ``literals``,
+# literal blocks and tables.
+_LITERAL = re.compile(r"(``.*?``)")
+
+
+def _escape_bars(app, what, name, obj, options, lines):
+    literal_indent = None
+    for i, line in enumerate(lines):
+        indent = len(line) - len(line.lstrip())
+        if literal_indent is not None and (not line.strip() or indent > literal_indent):
+            continue
+        literal_indent = indent if line.rstrip().endswith("::") else None
+        if line.lstrip().startswith(("|", "+")):
+            continue
+        parts = _LITERAL.split(line)
+        lines[i] = "".join(part if part.startswith("``") else part.replace("|", r"\|") for part in parts)
+
+
+def setup(app):
+    app.connect("autodoc-process-docstring", _escape_bars, priority=100)
