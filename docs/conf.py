@@ -35,7 +35,7 @@ extensions = [
 ]
 
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
-exclude_patterns = ["_build", "examples"]
+exclude_patterns = ["_build", "_templates", "examples"]
 suppress_warnings = ["myst.header"]
 
 # MyST: $...$ and $$...$$ math, \begin{equation} blocks, heading anchors for links
@@ -44,6 +44,7 @@ myst_heading_anchors = 3
 
 # API reference: one page per public name, numpydoc sections without its style checks
 autosummary_generate = True
+templates_path = ["_templates"]
 autosummary_imported_members = False
 autodoc_default_options = {"members": True, "show-inheritance": False}
 autodoc_member_order = "bysource"
@@ -70,7 +71,7 @@ html_theme = "pydata_sphinx_theme"
 html_title = f"mdroll {release}"
 html_theme_options = {
     "navigation_with_keys": False,
-    "header_links_before_dropdown": 7,
+    "header_links_before_dropdown": 6,
     "show_toc_level": 2,
     "secondary_sidebar_items": ["page-toc"],
     "footer_start": ["copyright"],
@@ -84,11 +85,17 @@ html_context = {"default_mode": "light"}
 
 # The docstrings write formulas as plain text ("|q|^(-2H-1)", "max |F_tree - F_direct|"), where
 # reStructuredText would read "|...|" as a substitution: make "|" literal outside ``literals``,
-# literal blocks and tables.
+# literal blocks and tables. Their citations of the theory and performance pages become links.
 _LITERAL = re.compile(r"(``.*?``)")
+_PAGE_CITATION = re.compile(r"(?:docs/)?(physics|performance)\.md((?:'s)? (?:sections? \d+(?:\.\d+)?(?: and \d+(?:\.\d+)?)?|v\d+\w*))?")
 
 
-def _escape_bars(app, what, name, obj, options, lines):
+def _prose(text: str) -> str:
+    text = text.replace("|", r"\|")
+    return _PAGE_CITATION.sub(lambda m: f":doc:`{m.group(0)} </{m.group(1)}>`", text)
+
+
+def _docstring_prose(app, what, name, obj, options, lines):
     literal_indent = None
     for i, line in enumerate(lines):
         indent = len(line) - len(line.lstrip())
@@ -97,9 +104,8 @@ def _escape_bars(app, what, name, obj, options, lines):
         literal_indent = indent if line.rstrip().endswith("::") else None
         if line.lstrip().startswith(("|", "+")):
             continue
-        parts = _LITERAL.split(line)
-        lines[i] = "".join(part if part.startswith("``") else part.replace("|", r"\|") for part in parts)
+        lines[i] = "".join(part if part.startswith("``") else _prose(part) for part in _LITERAL.split(line))
 
 
 def setup(app):
-    app.connect("autodoc-process-docstring", _escape_bars, priority=100)
+    app.connect("autodoc-process-docstring", _docstring_prose, priority=100)

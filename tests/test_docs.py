@@ -96,3 +96,11 @@ def test_pages_link_only_to_files_that_exist(page):
         if "://" in target or target.startswith("mailto:"):
             continue
         assert (base / target).exists(), f"{page} links to {target}, which does not exist"
+
+
+def test_every_public_name_is_in_the_api_reference():
+    import mdroll
+
+    api = (ROOT / "docs" / "api.md").read_text()
+    missing = [name for name in mdroll.__all__ if name != "__version__" and f"mdroll.{name}\n" not in api]
+    assert not missing, f"public names of mdroll missing from docs/api.md's autosummary: {missing}"
