@@ -5,6 +5,8 @@ MyST Markdown, the API reference is generated from the docstrings (autosummary +
 CLI reference from the argument parser (sphinx-argparse), and the gallery's examples run during
 the build on CPU-sized inputs (sphinx-gallery). MathJax is copied into the build
 (sphinx-mathjax-offline), so the site reads offline from the build directory.
+Generated sources (docs/generated, docs/auto_examples) are kept between builds: after renaming
+or removing a module or an example, delete them.
 """
 
 import os
