@@ -10,7 +10,7 @@ import json
 from mdroll import Params, run_ensemble
 from mdroll.bench import timed
 from mdroll.devices import resolve_device
-from mdroll.ensemble.force import ALGORITHMS
+from mdroll.ensemble.algorithms import ALGORITHMS
 from mdroll.provenance import environment
 
 

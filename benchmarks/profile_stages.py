@@ -15,7 +15,8 @@ import time
 from mdroll import Params
 from mdroll.devices import resolve_device, synchronize, to_warp
 from mdroll.ensemble.fft import rfft_rows
-from mdroll.ensemble.force import launch_force, prepare_lines
+from mdroll.ensemble.force import launch_force
+from mdroll.ensemble.prepare import prepare_lines
 from mdroll.ensemble.lines import random_spectra, rough_lines
 from mdroll.ensemble.checkpoint import RunTotals
 from mdroll.ensemble.pipeline import H_BOUND_SIGMAS

@@ -8,7 +8,9 @@ import pytest
 
 from mdroll import ALGORITHMS, Params, rough_lines, run_ensemble
 from mdroll.devices import synchronize, to_warp
-from mdroll.ensemble.force import launch_force, prepare_lines
+from mdroll.ensemble.force import launch_force
+from mdroll.ensemble.prepare import prepare_lines
+from mdroll.ensemble.algorithms import REGISTRY
 from mdroll.ensemble.coupled import coupled_series
 from mdroll.ensemble.spectra import psd_moments_of_batch, series_sums
 
@@ -66,7 +68,7 @@ def test_force(benchmark, device, log2n, algorithm):
     assert force.shape == (count, params.n_points)
 
 
-@pytest.mark.parametrize("algorithm", ALGORITHMS)
+@pytest.mark.parametrize("algorithm", [name for name in ALGORITHMS if REGISTRY[name].coupled is not None])
 def test_coupled_dynamics(benchmark, device, log2n, algorithm):
     params, count = _setup(device, log2n, algorithm, kind=f"coupled-{algorithm}")
     benchmark.group = f"coupled {device} n=2^{log2n}"

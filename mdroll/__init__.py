@@ -6,7 +6,9 @@ wheel's dynamics (section 5) and ensemble-averaged spectra (section 6). All unit
 """
 
 from .devices import DeviceError, available_devices
-from .ensemble.force import ALGORITHMS, BOUNDARIES, contact_force, step_range
+from .ensemble.algorithms import ALGORITHMS
+from .ensemble.force import contact_force
+from .ensemble.prepare import BOUNDARIES, step_range
 from .ensemble.lines import rough_lines
 from .ensemble.pipeline import EnsembleResult, run_ensemble
 from ._version import __version__

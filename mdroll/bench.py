@@ -1,12 +1,14 @@
-"""The scaling study behind ``mdroll bench``: measured cost of the three force algorithms.
+"""The scaling study behind ``mdroll bench``: measured cost of the registered force algorithms
+(:mod:`mdroll.ensemble.algorithms`: their names, bench variants, expected exponents and sizes).
 
 Sections (each a list of timed points, each point the median of ``repeats`` runs on fresh lines,
 the device synchronized before every clock read, after a warm-up whose compile time is
 reported apart):
 
 - ``refinement``: fixed L, dx halving (n doubles, springs in contact double): direct ~ n^2,
-  tree ~ n log n, edge ~ n; the exponent of time vs n is fitted on log-log by least squares.
-- ``distance``: fixed dx, L growing (n grows, contact fixed): all three ~ n.
+  tree ~ n log n, edge ~ n (each entry's ``complexity``); the exponent of time vs n is fitted
+  on log-log by least squares.
+- ``distance``: fixed dx, L growing (n grows, contact fixed): all ~ n.
 - ``ensemble``: throughput (realization-steps per second) against the number of realizations R.
 - ``cpu_vs_cuda``: the same run on both devices and their ratio (when CUDA is present).
 - ``stages``: the stage breakdown of a warm end-to-end ``run_ensemble``.
@@ -27,20 +29,30 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .devices import resolve_device, synchronize, to_warp, usable_devices, warp
-from .ensemble.force import ALGORITHMS, DEFAULT_BAND_LIMIT, DEFAULT_LEAF_SIZE, force_command, prepare_lines
+from .ensemble.algorithms import ALGORITHMS, REGISTRY
+from .ensemble.force import force_command
 from .ensemble.lines import rough_lines
-from .ensemble.pipeline import H_BOUND_SIGMAS, run_ensemble
+from .ensemble.pipeline import H_BOUND_SIGMAS, MODES, run_ensemble
+from .ensemble.prepare import DEFAULT_BAND_LIMIT, DEFAULT_LEAF_SIZE, prepare_lines
 from .params import Params
 
-#: What the issue expects of the refinement exponents (time ~ n^p). The n log n expectation is
-#: the traversal's (``tree-descent``); the default tree changes regime inside the sweep (direct
-#: band sums up to DEFAULT_BAND_LIMIT springs, the traversal beyond), so its fit over the sweep
-#: has no single expected value.
-EXPECTED_REFINEMENT_EXPONENT = {"direct": 2.0, "tree": None, "edge": 1.0, "tree-descent": 1.1}
-#: The refinement sweep also times the tree with every band traversed (band_limit 0): the
-#: O(n log n) traversal of physics.md section 4 at every size, next to the default, which sums
-#: the narrowed bands directly up to DEFAULT_BAND_LIMIT springs and traverses wider ones.
-TREE_DESCENT = {"band_limit": 0}
+
+def expected_exponent(section: str, name: str) -> float | None:
+    """The exponent p of time ~ n^p that the registry expects of an algorithm, or of one of its
+    bench variants, in ``section`` ("refinement" or "distance"); None where no single value fits."""
+    for entry in REGISTRY.values():
+        if entry.name == name:
+            return entry.complexity.refinement if section == "refinement" else entry.complexity.distance
+        for variant in entry.bench_variants:
+            if variant.name == name:
+                return variant.refinement if section == "refinement" else entry.complexity.distance
+    return None
+
+
+def refinement_note(name: str) -> str:
+    """Why an algorithm has no expected refinement exponent (its registry entry's note)."""
+    entry = REGISTRY.get(name)
+    return entry.complexity.note if entry is not None else ""
 
 
 @dataclass(frozen=True)
@@ -85,10 +97,6 @@ STUDIES = {
                       # n^0.75 and n^0.82 in the v5 study); 256 lines keep every size well above
                       cuda_realizations={"refinement": {"edge": 256}, "distance": {"edge": 256, "tree": 256}}),
 }
-#: Largest problem (realizations x points) per device and algorithm in a full study: on one CPU
-#: core direct takes ~1 us a step, tree ~0.05 us, edge ~0.02 us; on the GPU the direct sum under
-#: refinement grows as n^2 (2^26 points at 2^20 per line is ~1 s).
-POINT_LIMIT = {"cpu": {"direct": 2**20, "tree": 2**22, "edge": 2**23}, "cuda": {"direct": 2**26}}
 
 
 def timed(fn, device: str, repeats: int, setup=None) -> tuple[float, list[float]]:
@@ -150,8 +158,14 @@ def force_time(params: Params, algorithm: str, realizations: int, device: str, r
 
 
 def _allowed(device: str, algorithm: str, n: int, realizations: int, full: bool) -> bool:
-    limit = POINT_LIMIT["cpu" if device == "cpu" else "cuda"].get(algorithm)
+    limit = point_limit(device, algorithm)
     return not full or limit is None or n * realizations <= limit
+
+
+def point_limit(device: str, algorithm: str) -> int | None:
+    """The largest problem (realizations x points) of a full study on ``device`` (the registry
+    entry's ``bench_point_limit``; None: no limit)."""
+    return REGISTRY[algorithm].bench_point_limit.get("cpu" if device == "cpu" else "cuda")
 
 
 def compile_time(device: str) -> float:
@@ -159,7 +173,7 @@ def compile_time(device: str) -> float:
     small = Params(L=0.03)
     t0 = time.perf_counter()
     for algorithm in ALGORITHMS:
-        for mode in ("decoupled", "coupled"):
+        for mode in MODES if REGISTRY[algorithm].coupled is not None else ("decoupled",):
             run_ensemble(small, realizations=2, algorithm=algorithm, mode=mode, device=device, progress=False)
     synchronize(device)
     return time.perf_counter() - t0
@@ -204,11 +218,13 @@ def run_study(size: str = "quick", devices=None, progress=print) -> dict:
                         record[section].append(force_time(p, algorithm, count, device, study.repeats))
                 _fit(record, section, device, algorithm, progress)
             if section == "refinement":
-                for p in sizes:
-                    if _allowed(device, "tree", p.n_points, reps, full):
-                        point = force_time(p, "tree", reps, device, study.repeats, **TREE_DESCENT)
-                        record[section].append({**point, "algorithm": "tree-descent"})
-                _fit(record, section, device, "tree-descent", progress)
+                for entry in REGISTRY.values():
+                    for variant in entry.bench_variants:
+                        for p in sizes:
+                            if _allowed(device, entry.name, p.n_points, reps, full):
+                                point = force_time(p, entry.name, reps, device, study.repeats, **variant.options)
+                                record[section].append({**point, "algorithm": variant.name})
+                        _fit(record, section, device, variant.name, progress)
     e, counts = study.ensemble
     for device in devices:
         for algorithm in ALGORITHMS:
@@ -222,7 +238,7 @@ def run_study(size: str = "quick", devices=None, progress=print) -> dict:
         p = Params(L=2**e * 5e-6)
         for algorithm in ALGORITHMS:
             # the same run on every device; direct with fewer realizations so one CPU core finishes
-            runs = min(count, max(1, POINT_LIMIT["cpu"][algorithm] // p.n_points))
+            runs = min(count, max(1, (point_limit("cpu", algorithm) or count * p.n_points) // p.n_points))
             times = {d: force_time(p, algorithm, runs, d, study.repeats)["force_s"] for d in devices}
             cpu = times.get("cpu")
             record["cpu_vs_cuda"].append({"algorithm": algorithm, "n": p.n_points, "realizations": runs, "times_s": times,
@@ -255,8 +271,8 @@ def thesis_scale(device: str, repeats: int, progress=print) -> dict:
         total, times = timed(lambda: run_ensemble(p, algorithm=algorithm, device=device, progress=False), device, 3)
         out["end_to_end"][algorithm] = {"total_s": total, "times_s": times}
         progress(f"{device} thesis end to end {algorithm}: {total:.3f} s")
-    for algorithm in ALGORITHMS:
-        t0 = time.perf_counter()  # run_ensemble synchronizes the device after every stage
+    for algorithm in (name for name in ALGORITHMS if REGISTRY[name].coupled is not None):
+        t0 = time.perf_counter()  # run_ensemble returns after its result is on the host
         timings = run_ensemble(p, algorithm=algorithm, mode="coupled", device=device, progress=False).timings
         out["coupled"][algorithm] = {"total_s": time.perf_counter() - t0, "timings_s": timings}
         progress(f"{device} thesis coupled {algorithm}: {out['coupled'][algorithm]['total_s']:.3f} s "
@@ -280,9 +296,8 @@ def format_table(record: dict) -> str:
     for section, per_device in record["fits"].items():
         for device, per_alg in per_device.items():
             for alg, fit in per_alg.items():
-                expected = EXPECTED_REFINEMENT_EXPONENT[alg] if section == "refinement" else 1.0
-                note = (f"expected ~{expected:g}" if expected is not None else
-                        f"hybrid: bands up to {DEFAULT_BAND_LIMIT} springs summed directly; n log n: tree-descent")
+                expected = expected_exponent(section, alg)
+                note = f"expected ~{expected:g}" if expected is not None else refinement_note(alg)
                 lines.append(f"  {section:<10} {device:<7} {alg:<6} p = {fit['exponent']:.3f} +- {fit['stderr']:.3f}"
                              f"   ({note})")
     for row in record["cpu_vs_cuda"]:
@@ -306,7 +321,8 @@ def plot_study(record: dict, path) -> None:
 
     sections = [s for s in ("refinement", "distance") if record[s]]
     fig, axes = plt.subplots(1, len(sections), figsize=(6 * len(sections), 4.5), layout="constrained", squeeze=False)
-    colours = {"direct": "C3", "tree": "C0", "edge": "C2", "tree-descent": "C4"}
+    names = [n for entry in REGISTRY.values() for n in (entry.name, *(v.name for v in entry.bench_variants))]
+    colours = {name: f"C{i}" for i, name in enumerate(names)}
     for ax, section in zip(axes[0], sections):
         for device in sorted({r["device"] for r in record[section]}):
             for alg in colours:

@@ -14,6 +14,7 @@ import sys
 import tomllib
 from pathlib import Path
 
+from .ensemble.algorithms import ALGORITHMS, DEFAULT_ALGORITHM
 from .params import Params
 
 PARAM_NAMES = tuple(f.name for f in dataclasses.fields(Params))
@@ -95,7 +96,7 @@ def _parser() -> argparse.ArgumentParser:
     p_run.add_argument("--first", type=int, help="index of the first realization (default 0): split an ensemble "
                        "across processes, then `mdroll merge`")
     p_run.add_argument("--seed", type=int, help="master seed (default 0)")
-    p_run.add_argument("--algorithm", choices=["tree", "direct", "edge"], help="default tree")
+    p_run.add_argument("--algorithm", choices=ALGORITHMS, help=f"default {DEFAULT_ALGORITHM}")
     p_run.add_argument("--mode", choices=["decoupled", "coupled"], help="default decoupled")
     p_run.add_argument("--boundary", choices=["open", "periodic"], help="default open")
     p_run.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
@@ -171,7 +172,7 @@ def cmd_params(args) -> int:
     return 0
 
 
-RUN_DEFAULTS = {"seed": 0, "algorithm": "tree", "mode": "decoupled", "boundary": "open", "window": False}
+RUN_DEFAULTS = {"seed": 0, "algorithm": DEFAULT_ALGORITHM, "mode": "decoupled", "boundary": "open", "window": False}
 
 
 def cmd_run(args) -> int:

@@ -19,15 +19,57 @@ class DeviceError(ValueError):
 
 @functools.cache
 def warp():
-    """The initialised ``warp`` module (quiet)."""
+    """The initialised ``warp`` module (quiet).
+
+    Where no NVIDIA driver can be loaded, Warp's start-up prints a warning that GPU execution
+    is unavailable; a CPU user did not ask for a GPU, so it is kept off stderr (a CUDA device
+    asked for then fails in :func:`resolve_device` with one line that says why).
+    """
     import logging
 
     import warp as wp
 
     wp.config.log_level = logging.WARNING  # no banner, no per-module load lines
     wp.config.enable_backward = False  # forward kernels only: halves compile time
-    wp.init()
+    if cuda_driver_present():
+        wp.init()
+    else:
+        with _native_stderr_silenced():
+            wp.init()
     return wp
+
+
+@functools.cache
+def cuda_driver_present() -> bool:
+    """Whether the NVIDIA CUDA driver library loads (as Warp looks for it)."""
+    import ctypes
+    import sys
+
+    names = ("nvcuda.dll",) if sys.platform == "win32" else ("libcuda.so", "libcuda.so.1")
+    for name in names:
+        try:
+            ctypes.CDLL(name)
+            return True
+        except OSError:
+            pass
+    return False
+
+
+@contextlib.contextmanager
+def _native_stderr_silenced():
+    """Send what native code writes to file descriptor 2 to /dev/null for the duration."""
+    import os
+    import sys
+
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
 
 
 def available_devices() -> list[str]:
@@ -63,7 +105,8 @@ def resolve_device(device: str | None) -> str:
     if device == "cuda":
         device = "cuda:0"
     if device not in names:
-        raise DeviceError(f"device {device!r} does not exist here; available devices: {', '.join(names)}")
+        why = "" if cuda_driver_present() or not device.startswith("cuda") else " (no NVIDIA driver is installed)"
+        raise DeviceError(f"device {device!r} does not exist here{why}; available devices: {', '.join(names)}")
     if device.startswith("cuda"):
         _keep_pool(device)
         try:

@@ -5,21 +5,26 @@ import pytest
 from reference import direct_force, psd, to_numpy
 
 from mdroll import ParameterError, Params, contact_force, rough_lines, step_range
+from mdroll.devices import to_warp
+from mdroll.ensemble.algorithms import REGISTRY
 
 SMALL = Params(L=0.03, dx=20e-6)  # 1500 springs, a/dx = 253
 
 
 def _lines(params, seed, count, device):
-    return rough_lines(params, seed=seed, realizations=count, device=device)
+    """Lines generated on the CPU (on CUDA that needs CuPy, the kernels do not): NumPy for the
+    CPU, else a Warp array on ``device``."""
+    lines = rough_lines(params, seed=seed, realizations=count, device="cpu")
+    return lines if device == "cpu" else to_warp(lines, device)
 
 
 @pytest.mark.parametrize("boundary", ["open", "periodic"])
 @pytest.mark.parametrize("h0,d_factor", [(0.5e-6, 1.0), (5e-6, 1.0), (2e-6, 0.9)])
-def test_direct_matches_numpy_reference(device, boundary, h0, d_factor):
+def test_direct_matches_numpy_reference(kernel_device, boundary, h0, d_factor):
     p = SMALL.replace(h0=h0)
     d = p.d0 * d_factor
-    lines = to_numpy(_lines(p, 11, 3, device))
-    force = to_numpy(contact_force(lines if device == "cpu" else _lines(p, 11, 3, device), p, "direct", boundary, d=d, device=device))
+    lines = to_numpy(_lines(p, 11, 3, kernel_device))
+    force = to_numpy(contact_force(lines if kernel_device == "cpu" else _lines(p, 11, 3, kernel_device), p, "direct", boundary, d=d, device=kernel_device))
     n = p.n_points
     first, steps = step_range(p, boundary, d, lines.max())
     assert force.shape == (3, steps)
@@ -36,10 +41,10 @@ def test_direct_matches_numpy_reference(device, boundary, h0, d_factor):
 @pytest.mark.parametrize("boundary", ["open", "periodic"])
 @pytest.mark.parametrize("H", [0.3, 0.7, 0.9])
 @pytest.mark.parametrize("h0", [0.5e-6, 5e-6])
-def test_tree_equals_direct(device, boundary, H, h0):
+def test_tree_equals_direct(kernel_device, boundary, H, h0):
     p = Params(L=0.04, dx=10e-6, H=H, h0=h0)
-    lines = _lines(p, 7, 3, device)
-    direct = to_numpy(contact_force(lines, p, "direct", boundary, device=device))
+    lines = _lines(p, 7, 3, kernel_device)
+    direct = to_numpy(contact_force(lines, p, "direct", boundary, device=kernel_device))
     heights = to_numpy(lines)
     curvature = p.dx**2 / p.R
     narrowest_band = min(int(np.sqrt((p.d0 + row.max()) / curvature)) - int(np.sqrt((p.d0 + row.min()) / curvature))
@@ -48,43 +53,59 @@ def test_tree_equals_direct(device, boundary, H, h0):
         # band_limit 0: every band by the shared 8-step traversal; 10^6: every band summed
         # directly; the narrowest row's band: the wider rows traverse, that one sums
         for band_limit in (0, narrowest_band, 10**6):
-            tree = to_numpy(contact_force(lines, p, "tree", boundary, device=device, leaf_size=leaf_size,
+            tree = to_numpy(contact_force(lines, p, "tree", boundary, device=kernel_device, leaf_size=leaf_size,
                                           band_limit=band_limit))
             assert np.max(np.abs(tree - direct)) <= 1e-12 * p.F_N, (leaf_size, band_limit)
 
 
-def test_tree_equals_direct_with_gaps_and_shallow_indentation(device):
+def test_tree_equals_direct_with_gaps_and_shallow_indentation(kernel_device):
     # h0 = 5 um on a 51 um indentation, and d = 3 um < max h: the contact breaks into patches
     p = Params(L=0.04, dx=10e-6, h0=5e-6, H=0.3)
-    lines = _lines(p, 3, 2, device)
+    lines = _lines(p, 3, 2, kernel_device)
     for d in (p.d0, 3e-6):
-        direct = to_numpy(contact_force(lines, p, "direct", "periodic", d=d, device=device))
+        direct = to_numpy(contact_force(lines, p, "direct", "periodic", d=d, device=kernel_device))
         for band_limit in (0, 10**6):
-            tree = to_numpy(contact_force(lines, p, "tree", "periodic", d=d, device=device, leaf_size=4,
+            tree = to_numpy(contact_force(lines, p, "tree", "periodic", d=d, device=kernel_device, leaf_size=4,
                                           band_limit=band_limit))
             assert np.max(np.abs(tree - direct)) <= 1e-12 * p.F_N
 
 
+EXACT = [name for name, entry in REGISTRY.items() if entry.exact and name != "direct"]
+
+
+@pytest.mark.parametrize("algorithm", EXACT)
+@pytest.mark.parametrize("boundary", ["open", "periodic"])
+def test_every_exact_algorithm_equals_direct(kernel_device, algorithm, boundary):
+    """Every algorithm the registry calls exact gives the direct sum to rounding, on rough lines
+    and with contact broken into patches (d = 3 um < max h)."""
+    p = Params(L=0.04, dx=10e-6, h0=5e-6, H=0.3)
+    lines = _lines(p, 3, 2, kernel_device)
+    for d in (p.d0, 3e-6):
+        direct = to_numpy(contact_force(lines, p, "direct", boundary, d=d, device=kernel_device))
+        other = to_numpy(contact_force(lines, p, algorithm, boundary, d=d, device=kernel_device))
+        assert np.max(np.abs(other - direct)) <= 1e-12 * p.F_N
+
+
 @pytest.mark.parametrize("dx", [5e-6, 20e-6])
-def test_smooth_line_gives_hertz_force(device, dx):
+def test_smooth_line_gives_hertz_force(kernel_device, dx):
     # Bound (Euler-Maclaurin on the spring sum with the kink at |x| = a):
     # (F_sum - F_Hertz)/F_Hertz lies in [-1/4, 1/8] (dx/a)^2 (+ higher order); the test uses 0.26 (dx/a)^2.
     p = Params(L=0.03, dx=dx)
     flat = np.zeros((1, p.n_points))
     bound = 0.26 * (p.dx / p.a) ** 2
     for algorithm in ("direct", "tree"):
-        force = to_numpy(contact_force(flat, p, algorithm, "periodic", device=device))
+        force = to_numpy(contact_force(flat, p, algorithm, "periodic", device=kernel_device))
         assert np.max(np.abs(force / p.F_N - 1)) <= bound
         assert np.ptp(force) == 0.0 or np.ptp(force) <= 1e-12 * p.F_N
-    edge = to_numpy(contact_force(flat, p, "edge", "periodic", device=device))
+    edge = to_numpy(contact_force(flat, p, "edge", "periodic", device=kernel_device))
     np.testing.assert_allclose(edge, p.F_N, rtol=1e-12)
 
 
-def test_edge_formula_against_numpy(device):
+def test_edge_formula_against_numpy(kernel_device):
     """Eq 49 evaluated independently: the linear interpolant integrated by np.interp on a fine grid."""
     p = SMALL.replace(h0=1e-6)
-    lines = to_numpy(_lines(p, 4, 2, device))
-    edge = to_numpy(contact_force(lines if device == "cpu" else _lines(p, 4, 2, device), p, "edge", "open", device=device))
+    lines = to_numpy(_lines(p, 4, 2, kernel_device))
+    edge = to_numpy(contact_force(lines if kernel_device == "cpu" else _lines(p, 4, 2, kernel_device), p, "edge", "open", device=kernel_device))
     first, steps = step_range(p, "open", p.d0, lines.max())
     x = np.arange(p.n_points) * p.dx
     for r in range(2):
@@ -158,41 +179,19 @@ def test_periodic_series_is_periodic_and_shift_invariant():
     np.testing.assert_allclose(np.roll(force, 37, axis=1), rolled, rtol=1e-13)
 
 
-def test_cpu_and_cuda_agree(cuda_devices):
-    if not cuda_devices:
+def test_cpu_and_cuda_agree(kernel_cuda_devices):
+    if not kernel_cuda_devices:
         pytest.skip("no CUDA device")
     p = SMALL.replace(h0=2e-6)
     lines = to_numpy(_lines(p, 1, 3, "cpu"))
     for algorithm in ("direct", "tree", "edge"):
         cpu = contact_force(lines, p, algorithm, "open")
-        for dev in cuda_devices:
+        for dev in kernel_cuda_devices:
             gpu = to_numpy(contact_force(lines, p, algorithm, "open", device=dev))
             assert np.max(np.abs(gpu - cpu)) <= 1e-12 * p.F_N
 
 
-@pytest.mark.parametrize(
-    "kwargs,name",
-    [
-        ({"algorithm": "fast"}, "algorithm"),
-        ({"boundary": "wrap"}, "boundary"),
-        ({"d": -1e-6}, "d"),
-        ({"d": float("nan")}, "d"),
-        ({"leaf_size": 0}, "leaf_size"),
-        ({"band_limit": -1}, "band_limit"),
-    ],
-)
-def test_bad_arguments(kwargs, name):
-    lines = np.zeros((1, SMALL.n_points))
-    with pytest.raises(ParameterError, match=name):
-        contact_force(lines, SMALL, **kwargs)
-
-
-def test_wrong_line_length_is_refused():
-    with pytest.raises(ParameterError, match="shape"):
-        contact_force(np.zeros((2, 100)), SMALL)
-
-
-def test_closed_form_sums_are_exact_integers(device):
+def test_closed_form_sums_are_exact_integers(kernel_device):
     """sum m^2 and sum m over offset ranges up to MAX_CLOSED_FORM_OFFSET (the tree's full-contact
     closed forms, eq 19-20) against Python's exact integers, empty ranges included."""
     import warp as wp
@@ -210,9 +209,9 @@ def test_closed_form_sums_are_exact_integers(device):
     p = np.concatenate([[-top, -top, 0, 5, -3], rng.integers(-top, top, 2000)])
     q = np.concatenate([[top, -top - 1, 0, 4, -3], rng.integers(-top, top, 2000)])
     p, q = np.minimum(p, q + 1), np.maximum(q, p - 1)  # p <= q + 1
-    out = wp.zeros((p.size, 2), dtype=wp.float64, device=device)
-    wp.launch(sums, dim=p.size, inputs=[wp.array(p, dtype=int, device=device), wp.array(q, dtype=int, device=device),
-                                        out], device=device)
+    out = wp.zeros((p.size, 2), dtype=wp.float64, device=kernel_device)
+    wp.launch(sums, dim=p.size, inputs=[wp.array(p, dtype=int, device=kernel_device), wp.array(q, dtype=int, device=kernel_device),
+                                        out], device=kernel_device)
     result = out.numpy()
     for (a, b), (squares, offsets) in zip(zip(p.tolist(), q.tolist()), result):
         # Python integers: the closed forms, checked by brute force on short ranges
@@ -244,16 +243,16 @@ def test_window_beyond_the_exact_closed_forms_is_refused(algorithm):
 
 @pytest.mark.parametrize("boundary", ["open", "periodic"])
 @pytest.mark.parametrize("h_max", [None, 6 * SMALL.h0])
-def test_prepared_bounds_and_prefix_sums_against_numpy(device, boundary, h_max):
+def test_prepared_bounds_and_prefix_sums_against_numpy(kernel_device, boundary, h_max):
     """Row bounds equal numpy's min and max, whether from their own pass (coalesced partials on
     CUDA; h_max not given) or from the tree's root (h_max given); the prefix sums, one scan over
     the batch read as overlapping rows, give numpy's row-wise cumulative sums as differences
     S_j - S_0 (eq 18)."""
-    from mdroll.ensemble.force import prepare_lines
+    from mdroll.ensemble.prepare import prepare_lines
 
     p = SMALL
-    lines = _lines(p, 4, 3, device)
-    prepared = prepare_lines(lines, p, "tree", boundary, p.d0, device, h_max=h_max)
+    lines = _lines(p, 4, 3, kernel_device)
+    prepared = prepare_lines(lines, p, "tree", boundary, p.d0, kernel_device, h_max=h_max)
     host, work = to_numpy(lines), to_numpy(prepared.lines)
     np.testing.assert_array_equal(to_numpy(prepared.bounds), np.stack([host.min(axis=1), host.max(axis=1)], axis=1))
     prefix = to_numpy(prepared.prefix)
@@ -263,14 +262,67 @@ def test_prepared_bounds_and_prefix_sums_against_numpy(device, boundary, h_max):
 
 
 @pytest.mark.parametrize("algorithm", ["tree", "direct", "edge"])
-def test_force_offset_is_subtracted_in_the_kernel(device, algorithm):
+def test_force_offset_is_subtracted_in_the_kernel(kernel_device, algorithm):
     """``launch_force(offset=F_N)`` writes F - F_N (the pipeline's series) to within the one
     rounding of the subtraction (a fused multiply-add may round k u - F_N once instead of twice)."""
-    from mdroll.ensemble.force import launch_force, prepare_lines
+    from mdroll.ensemble.force import launch_force
+    from mdroll.ensemble.prepare import prepare_lines
 
     p = SMALL
-    prepared = prepare_lines(_lines(p, 8, 3, device), p, algorithm, "open", p.d0, device)
-    plain = to_numpy(launch_force(prepared, p, algorithm, p.d0, device))
-    shifted = to_numpy(launch_force(prepared, p, algorithm, p.d0, device, offset=p.F_N))
+    prepared = prepare_lines(_lines(p, 8, 3, kernel_device), p, algorithm, "open", p.d0, kernel_device)
+    plain = to_numpy(launch_force(prepared, p, algorithm, p.d0, kernel_device))
+    shifted = to_numpy(launch_force(prepared, p, algorithm, p.d0, kernel_device, offset=p.F_N))
     assert np.ptp(plain) > 1.0  # a rough line: the deviations are not all alike
     assert np.max(np.abs(shifted - (plain - p.F_N))) <= 2.0**-52 * p.F_N
+
+
+def test_host_edge_geometry_is_the_kernels_bit_for_bit(kernel_device):
+    """Eq 49's constants at d: the host's (from mdroll.physics, for the decoupled launch) and the
+    kernel's (per step of the coupled dynamics) are the same operations in the same order."""
+    import warp as wp
+
+    from mdroll.ensemble.algorithms import edge_geometry as host_geometry
+    from mdroll.kernels.edge import edge_geometry
+
+    @wp.kernel
+    def geometry(d: wp.array(dtype=wp.float64), dx: wp.float64, R: wp.float64, E_star: wp.float64,
+                 out: wp.array2d(dtype=wp.float64)):
+        i = wp.tid()
+        g = edge_geometry(d[i], dx, R, E_star)
+        out[i, 0] = wp.float64(g.whole)
+        out[i, 1] = g.fraction
+        out[i, 2] = g.hertz
+        out[i, 3] = g.tip
+        out[i, 4] = g.dx_E_star
+
+    p = Params()
+    depths = p.d0 * np.array([0.37, 0.9, 1.0, 1.13, 2.5])
+    out = wp.zeros((depths.size, 5), dtype=wp.float64, device=kernel_device)
+    wp.launch(geometry, dim=depths.size, inputs=[wp.array(depths, dtype=wp.float64, device=kernel_device), p.dx, p.R,
+                                                 p.E_star, out], device=kernel_device)
+    for d, row in zip(depths, out.numpy()):
+        g = host_geometry(p, d)
+        assert row.tolist() == [g.whole, g.fraction, g.hertz, g.tip, g.dx_E_star]
+
+
+def test_host_reach_is_the_kernels(kernel_device):
+    """The window of possible contact, largest m with curvature m^2 <= level: the host's
+    (placing the wheel, sizing the lift table) equals the kernels', exact squares included."""
+    import warp as wp
+
+    from mdroll.ensemble.prepare import reach
+    from mdroll.kernels.common import reach_inclusive
+
+    @wp.kernel
+    def reaches(level: wp.array(dtype=wp.float64), curvature: wp.array(dtype=wp.float64), out: wp.array(dtype=int)):
+        i = wp.tid()
+        out[i] = reach_inclusive(level[i], curvature[i])
+
+    rng = np.random.default_rng(2)
+    curvature = 10.0 ** rng.uniform(-13, -9, 400)
+    level = np.concatenate([rng.uniform(-1e-6, 2e-4, 200), curvature[200:] * rng.integers(0, 4000, 200) ** 2])
+    out = wp.zeros(level.size, dtype=int, device=kernel_device)
+    wp.launch(reaches, dim=level.size, inputs=[wp.array(level, dtype=wp.float64, device=kernel_device),
+                                               wp.array(curvature, dtype=wp.float64, device=kernel_device), out],
+              device=kernel_device)
+    assert out.numpy().tolist() == [reach(a, b) for a, b in zip(level.tolist(), curvature.tolist())]

@@ -5,7 +5,7 @@ import pytest
 from reference import contact_reach, direct_force, sweep_force, to_numpy
 
 from mdroll import Params, contact_force, rough_lines, step_range
-from mdroll.ensemble.force import _prefix_sums, prepare_lines
+from mdroll.ensemble.prepare import _prefix_sums, prepare_lines
 from mdroll.ensemble.sweep import sweep_command
 
 SMALL = Params(L=0.03, dx=20e-6)  # 1500 springs, a/dx = 253

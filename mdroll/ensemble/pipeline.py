@@ -19,7 +19,10 @@ from ..params import ParameterError, Params
 from .batching import default_batch
 from .checkpoint import RunTotals
 from .coupled import coupled_series
-from .force import ALGORITHMS, BOUNDARIES, DEFAULT_LEAF_SIZE, check_choice, launch_force, prepare_lines
+from .algorithms import DEFAULT_ALGORITHM, algorithm_entry, coupled_entry
+from .arguments import check_choice, check_flag, check_integer, check_params
+from .force import launch_force
+from .prepare import BOUNDARIES, DEFAULT_LEAF_SIZE, prepare_lines
 from .lines import check_seed, realization_indices, rough_lines
 from .result import EnsembleResult
 from .spectra import psd_moments_of_batch, series_sums, to_host
@@ -45,7 +48,7 @@ def run_ensemble(
     params: Params,
     seed: int = 0,
     realizations=None,
-    algorithm: str = "tree",
+    algorithm: str = DEFAULT_ALGORITHM,
     mode: str = "decoupled",
     boundary: str = "open",
     device: str = "auto",
@@ -63,27 +66,32 @@ def run_ensemble(
     are processed in batches (sized from free device or host memory, capped by
     ``memory_limit`` bytes, unless ``batch`` is given): rough lines (section 3) -> force at d0
     by ``algorithm`` and the wheel on the linearized contact spring (``mode="decoupled"``,
-    section 5.1), or the coupled dynamics of eq 13 (``mode="coupled"``) -> PSDs (section 6,
-    optional Hann ``window``) -> running per-bin mean and variance. Memory stays O(batch x n).
+    section 5.1), or the coupled dynamics of eq 13 (``mode="coupled"``; refused for an
+    algorithm without a coupled step) -> PSDs (section 6, optional Hann ``window``) -> running
+    per-bin mean and variance. Memory stays O(batch x n). ``leaf_size``: springs per tree leaf.
 
     ``checkpoint``: a file the running accumulators are written to after every batch,
     atomically (temporary file, then rename). With ``resume=True`` an existing checkpoint of
     the same run is continued where it stopped (a different run is refused, naming the
     differences); the result is the uninterrupted run's to rounding.
     """
-    check_choice("algorithm", algorithm, ALGORITHMS)
+    # every argument checked here, once
+    check_params(params)
     check_choice("mode", mode, MODES)
+    (algorithm_entry if mode == "decoupled" else coupled_entry)(algorithm)
     check_choice("boundary", boundary, BOUNDARIES)
     seed = check_seed(seed)
     indices = realization_indices(params.n_real if realizations is None else realizations)
+    leaf_size = check_integer("leaf_size", leaf_size, 1, "springs")
+    progress, window, resume = (check_flag(name, value) for name, value in
+                                (("progress", progress), ("window", window), ("resume", resume)))
+    if memory_limit is not None:
+        memory_limit = check_integer("memory_limit", memory_limit, 1, "bytes")
+    if batch is not None:
+        batch = check_integer("batch", batch, 1, "realizations")
     device = resolve_device(device)
-    if memory_limit is not None and (isinstance(memory_limit, bool) or not isinstance(memory_limit, (int, np.integer))
-                                     or memory_limit < 1):
-        raise ParameterError(f"memory_limit = {memory_limit!r} is not allowed: it must be a positive number of bytes")
     if batch is None:
         batch = default_batch(params, device, memory_limit, wanted=len(indices))
-    if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)) or batch < 1:
-        raise ParameterError(f"batch = {batch!r} is not allowed: it must be a positive integer")
 
     key = {"params": params.as_dict(), "seed": seed, "realizations": indices.tolist(), "algorithm": algorithm,
            "mode": mode, "boundary": boundary, "window": window, "leaf_size": leaf_size}

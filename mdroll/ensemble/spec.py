@@ -17,6 +17,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from ..params import ParameterError, Params
+from .algorithms import DEFAULT_ALGORITHM
 
 
 @dataclass(frozen=True)
@@ -41,7 +42,7 @@ class EnsembleSpec:
     seed: int = 0
     first: int = 0
     realizations: int = 1
-    algorithm: str = "tree"
+    algorithm: str = DEFAULT_ALGORITHM
     mode: str = "decoupled"
     boundary: str = "open"
     window: bool = False

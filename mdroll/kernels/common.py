@@ -1,4 +1,4 @@
-"""Small ``wp.func`` building blocks shared by the three force algorithms (physics.md section 2).
+"""Small ``wp.func`` building blocks and constants shared by the force algorithms (physics.md section 2).
 
 Geometry, in spring units: spring ``l`` sits at ``x_l = l dx``; the wheel centre is at spring
 ``c`` (``x_w = c dx``); the indentation is ``d`` (m). The MDR indenter (eq 7) lowers spring
@@ -15,8 +15,8 @@ import warp as wp
 
 from .. import physics
 
-#: int32 stack of tree nodes for the explicit-stack traversal (see ``tree.py`` for the bound).
-TREE_STACK_CAPACITY = wp.constant(32)
+#: int32 stack of tree nodes for the explicit-stack traversal; its length (``tree_stack._length_``)
+#: is the capacity the tree launch checks (see ``tree.py`` for the bound).
 tree_stack = wp.types.vector(length=32, dtype=wp.int32)
 
 
@@ -151,12 +151,35 @@ def indenter_lifts(d: wp.float64, curvature: wp.float64, origin: int, lifts: wp.
     lifts[i] = d - curvature * m * m
 
 
-#: Steps per thread in the blocked kernels, and offsets per block: for each block of 8 offsets a
-#: thread loads the 15 heights that its 64 (step, offset) pairs need once, into registers.
+#: Steps per thread in the blocked kernels, and offsets per block: for each block of BLOCK = 8
+#: offsets a thread loads the 2 BLOCK - 1 = 15 heights that its 64 (step, offset) pairs need
+#: once, into registers.
 BLOCK = wp.constant(8)
-BLOCK_HEIGHTS = wp.constant(15)
-block_values = wp.types.vector(length=8, dtype=wp.float64)
-block_heights = wp.types.vector(length=15, dtype=wp.float64)
+BLOCK_HEIGHTS = wp.constant(2 * BLOCK - 1)
+block_values = wp.types.vector(length=BLOCK, dtype=wp.float64)
+block_heights = wp.types.vector(length=BLOCK_HEIGHTS, dtype=wp.float64)
+
+
+@wp.struct
+class Contact:
+    """The indenter and springs of a run, constant over its steps: ``dx`` spring spacing (m),
+    ``R`` wheel radius (m), ``E_star`` effective modulus (Pa), ``curvature = dx^2 / R`` (m; the
+    MDR indenter lowers spring l by ``curvature (l - c)^2``, eq 7, 10) and ``k_spring = E* dx``
+    (N/m, eq 11-12)."""
+
+    dx: wp.float64
+    R: wp.float64
+    E_star: wp.float64
+    curvature: wp.float64
+    k_spring: wp.float64
+
+
+@wp.func
+def blocked_last_read(first_offset: int, blocks: int) -> int:
+    """The largest offset from the wheel's first step c that :func:`blocked_spring_sum` reads for
+    ``blocks`` blocks from ``first_offset`` (its smallest is ``first_offset``): the last offset
+    summed, ``first_offset + BLOCK blocks - 1``, seen from the last of the BLOCK steps."""
+    return first_offset + blocks * BLOCK - 1 + BLOCK - 1
 
 
 @wp.func
@@ -183,8 +206,8 @@ def blocked_spring_sum(
     entering and leaving, plus ``8 blocks d - curvature sum m^2``. Cancellation is mild: the
     springs of the window that do not touch have ``|u| <= max h - min h``.
 
-    The caller guarantees that every spring read (``c + first_offset .. c + last + 7``) lies
-    on the row and every offset on the lift table.
+    The caller guarantees that every spring read (``c + first_offset .. c +``
+    :func:`blocked_last_read`) lies on the row and every offset on the lift table.
     """
     absolute = block_values()
     heights_step0 = wp.float64(0.0)
@@ -201,6 +224,7 @@ def blocked_spring_sum(
         lift = block_values()
         for k in range(BLOCK):
             lift[k] = lifts[lift_origin + m0 + k]
+        # pairwise, for BLOCK = 8
         heights_step0 += ((heights[0] + heights[1]) + (heights[2] + heights[3])) + (
             (heights[4] + heights[5]) + (heights[6] + heights[7])
         )

@@ -7,7 +7,18 @@ contributes ``max(h_l + d - curvature (l - c)^2, 0)`` (eq 10-12); springs off th
 
 import warp as wp
 
-from .common import BLOCK, block_values, blocked_spring_sum, reach_inclusive, spring_sum
+from .common import BLOCK, Contact, block_values, blocked_last_read, blocked_spring_sum, reach_inclusive, spring_sum
+from .dynamics import coupled_dynamics
+
+
+@wp.struct
+class DirectLines:
+    """What the direct sum reads of a batch of lines: heights ``h`` (m, rows of ``n`` springs) and
+    each row's ``bounds = (min h, max h)`` (m)."""
+
+    h: wp.array2d(dtype=wp.float64)
+    bounds: wp.array(dtype=wp.vec2d)
+    n: int
 
 
 @wp.func
@@ -61,8 +72,7 @@ def contact_force_direct(
     window = reach_inclusive(d + h_max, curvature)
     c = first + base
     blocks = (2 * window + BLOCK) // BLOCK
-    reach_last = -window + blocks * BLOCK - 1 + BLOCK - 1
-    if window >= 0 and base + BLOCK <= steps and c - window >= 0 and c + reach_last < n:
+    if window >= 0 and base + BLOCK <= steps and c - window >= 0 and c + blocked_last_read(-window, blocks) < n:
         # every spring the 8 steps read lies on the line: no checks in the inner loops
         acc = blocked_spring_sum(h[r], c, -window, blocks, lifts, lift_origin, d, curvature, block_values())
         for j in range(BLOCK):
@@ -72,3 +82,13 @@ def contact_force_direct(
             s = base + j
             if s < steps:
                 force[r, s] = k_spring * force_direct(h, r, n, first + s, d, h_max, curvature, 0, 1) - offset
+
+
+@wp.func
+def direct_lane_force(lines: DirectLines, r: int, c: int, d: wp.float64, contact: Contact, lane: int, lanes: int) -> wp.float64:
+    """This lane's part (N) of F (eq 11-12) with the wheel at spring c of row r, indentation d (m)."""
+    return contact.k_spring * force_direct(lines.h, r, lines.n, c, d, lines.bounds[r][1], contact.curvature, lane, lanes)
+
+
+#: Eq 13 with the direct sum (:func:`mdroll.kernels.dynamics.coupled_dynamics`).
+coupled_direct = coupled_dynamics(DirectLines, direct_lane_force)

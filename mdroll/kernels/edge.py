@@ -15,6 +15,9 @@ dynamics.
 
 import warp as wp
 
+from .common import Contact
+from .dynamics import coupled_dynamics
+
 
 @wp.struct
 class EdgeGeometry:
@@ -34,7 +37,10 @@ class EdgeGeometry:
 
 @wp.func
 def edge_geometry(d: wp.float64, dx: wp.float64, R: wp.float64, E_star: wp.float64) -> EdgeGeometry:
-    """:class:`EdgeGeometry` at indentation d (m); the host twin is ``force.edge_geometry``."""
+    """:class:`EdgeGeometry` at indentation d (m), as :func:`mdroll.physics.contact_radius`,
+    :func:`~mdroll.physics.hertz_force`, :func:`~mdroll.physics.edge_coefficient` and
+    :func:`~mdroll.physics.spring_stiffness` give it on the host (the same operations in the
+    same order: bit for bit)."""
     g = EdgeGeometry()
     a = wp.sqrt(d * R)
     alpha = a / dx
@@ -83,3 +89,16 @@ def contact_force_edge(
     """``force[r, s] = F - offset`` (N): F by eq 49 with the wheel at spring ``first + s`` of row r."""
     r, s = wp.tid()
     force[r, s] = force_edge(prefix, r, first + s, geometry) - offset
+
+
+@wp.func
+def edge_lane_force(prefix: wp.array2d(dtype=wp.float64), r: int, c: int, d: wp.float64, contact: Contact, lane: int,
+                    lanes: int) -> wp.float64:
+    """Eq 49 (N) at indentation d (m), on lane 0 only (O(1) a step); 0 elsewhere and without contact."""
+    if lane == 0 and d > wp.float64(0.0):
+        return force_edge(prefix, r, c, edge_geometry(d, contact.dx, contact.R, contact.E_star))
+    return wp.float64(0.0)
+
+
+#: Eq 13 with the edge formula (:func:`mdroll.kernels.dynamics.coupled_dynamics`).
+coupled_edge = coupled_dynamics(wp.array2d(dtype=wp.float64), edge_lane_force)

@@ -33,7 +33,7 @@ the compiler took 255, which leaves 8 warps a streaming multiprocessor.
 
 Stack bound: a band starts with at most 2 nodes on the stack, and each descent pops one node and
 pushes two, so the stack never holds more than ``2 + start level <= 2 + top level`` entries; the
-launcher checks ``2 + top level <= TREE_STACK_CAPACITY`` before launch.
+launcher checks ``2 + top level`` against the stack's length (``common.tree_stack``) before launch.
 """
 
 import warp as wp
@@ -41,8 +41,10 @@ import warp as wp
 from .common import (
     BLOCK,
     BLOCK_HEIGHTS,
+    Contact,
     block_heights,
     block_values,
+    blocked_last_read,
     blocked_spring_sum,
     full_contact_sum,
     reach_inclusive,
@@ -52,16 +54,35 @@ from .common import (
     sum_of_squares,
     tree_stack,
 )
+from .dynamics import coupled_dynamics
 
-#: Nodes are pushed as ``(index << LEVEL_BITS) | level`` (levels < 32).
+#: Nodes are pushed as ``(index << LEVEL_BITS) | level`` (levels < 2^LEVEL_BITS = 32).
 LEVEL_BITS = wp.constant(5)
+LEVEL_MASK = wp.constant((1 << LEVEL_BITS) - 1)
 #: Register cap of the main kernel: 128 lets 16 warps share a streaming multiprocessor. On an
 #: H100, thesis scale took 9.8 ms against 14.2 uncapped (255) or 160, and 11.7 at 96
 #: (docs/performance.md, v8).
 TREE_MAX_REGISTERS = 128
 #: A lifted height (m) below every indenter depth: a masked spring's displacement is negative.
 NO_CONTACT = wp.constant(wp.float64(-1.0e300))
-LEVEL_MASK = wp.constant(31)
+
+
+@wp.struct
+class TreeLines:
+    """What the tree kernels read of a batch of lines (rows of ``n`` springs): heights ``h`` (m),
+    prefix sums ``prefix`` (m; eq 18, (R, n + 1)), the implicit min/max tree ``nodes`` (m; level
+    L starts at ``level_offsets[L]``, the root alone on ``top_level``), ``leaf_size`` springs a
+    leaf, and ``band_limit``: the band width (springs a side) above which the main path
+    descends the tree instead of summing the bands directly."""
+
+    h: wp.array2d(dtype=wp.float64)
+    prefix: wp.array2d(dtype=wp.float64)
+    nodes: wp.array2d(dtype=wp.vec2d)
+    level_offsets: wp.array(dtype=int)
+    top_level: int
+    leaf_size: int
+    band_limit: int
+    n: int
 
 
 @wp.func
@@ -372,16 +393,9 @@ def band_descent(
 
 @wp.kernel(cuda_max_registers=TREE_MAX_REGISTERS)
 def contact_force_tree(
-    h: wp.array2d(dtype=wp.float64),
-    prefix: wp.array2d(dtype=wp.float64),
-    tree: wp.array2d(dtype=wp.vec2d),
-    level_offsets: wp.array(dtype=int),
+    lines: TreeLines,
     lifts: wp.array(dtype=wp.float64),
     lift_origin: int,
-    top_level: int,
-    leaf_size: int,
-    band_limit: int,
-    n: int,
     first: int,
     steps: int,
     d: wp.float64,
@@ -397,13 +411,25 @@ def contact_force_tree(
     band holds at most ``band_limit`` springs a side the bands are summed directly
     (register-blocked), in wider ones they descend the tree (:func:`band_descent`).
     """
+    h = lines.h
+    prefix = lines.prefix
+    tree = lines.nodes
+    level_offsets = lines.level_offsets
+    top_level = lines.top_level
+    leaf_size = lines.leaf_size
+    n = lines.n
     r, t = wp.tid()
     base = t * BLOCK
     c = first + base
     root = tree[r, level_offsets[top_level]]
     outer = reach_inclusive(d + root[1], curvature)
     core = reach_strict(d + root[0], curvature)
-    if core >= 0 and base + BLOCK <= steps and c - outer - BLOCK >= 0 and c + outer + 3 * BLOCK < n:
+    # every spring the main path reads lies on the line: its blocked sums read from a left
+    # band's first block (offset >= -outer - (BLOCK - 1)) to a right band's last block (which
+    # starts at most at offset outer), its descents and range queries within c - outer ..
+    # c + BLOCK - 1 + outer
+    if (core >= 0 and base + BLOCK <= steps and c - outer - (BLOCK - 1) >= 0
+            and c + blocked_last_read(outer, 1) < n):
         # local bounds over the springs the 8 steps' bands can reach, right and left
         right = range_bounds(tree, level_offsets, leaf_size, r, c + core + 1, c + BLOCK - 1 + outer)
         left = range_bounds(tree, level_offsets, leaf_size, r, c - outer, c + BLOCK - 1 - core - 1)
@@ -413,7 +439,7 @@ def contact_force_tree(
         outer_left = wp.min(outer, reach_inclusive(d + left[1], curvature))
         # in a row whose band is wider than band_limit each side is traversed once for the 8
         # steps (band_descent); its core edge is then shared by the 8 steps
-        wide = outer - core > band_limit
+        wide = outer - core > lines.band_limit
         descend_right = wide and core_right >= BLOCK - 1
         descend_left = wide and core_left >= BLOCK - 1
         acc = block_values()
@@ -450,3 +476,15 @@ def contact_force_tree(
                 force[r, s] = k_spring * force_tree(
                     h, prefix, tree, level_offsets, top_level, leaf_size, r, n, first + s, d, curvature, 0, 1
                 ) - offset
+
+
+@wp.func
+def tree_lane_force(lines: TreeLines, r: int, c: int, d: wp.float64, contact: Contact, lane: int, lanes: int) -> wp.float64:
+    """This lane's part (N) of F (eq 11-12) with the wheel at spring c of row r, indentation d (m):
+    lane 0 the core, each lane its slice of the bands (:func:`force_tree`)."""
+    return contact.k_spring * force_tree(lines.h, lines.prefix, lines.nodes, lines.level_offsets, lines.top_level,
+                                         lines.leaf_size, r, lines.n, c, d, contact.curvature, lane, lanes)
+
+
+#: Eq 13 with the tree (:func:`mdroll.kernels.dynamics.coupled_dynamics`).
+coupled_tree = coupled_dynamics(TreeLines, tree_lane_force)
