@@ -14,6 +14,12 @@ import numpy as np
 from . import physics
 
 
+#: The most springs a line may hold: one array dimension of Warp (32-bit).
+MAX_POINTS = 2**31 - 1
+#: Modes per piece of the band summed for lambda_A (32 MiB of float64).
+BAND_PIECE = 2**22
+
+
 class ParameterError(ValueError):
     """A parameter is out of range, of the wrong type or not finite.
 
@@ -89,7 +95,23 @@ class Params:
             raise ParameterError(f"nu = {self.nu!r} is not allowed: Poisson's ratio must lie in (-1, 0.5)")
         if not (math.isfinite(self.H) and 0.0 < self.H < 1.0):
             raise ParameterError(f"H = {self.H!r} is not allowed: the Hurst exponent must lie in (0, 1)")
-        if self.q_max is None:
+        if not self.L / self.dx < MAX_POINTS:
+            raise ParameterError(
+                f"L = {self.L!r} m is not allowed with dx = {self.dx!r} m: the line would hold {self.L / self.dx:.3g} "
+                f"springs, more than the {MAX_POINTS} of one array (Warp's 32-bit dimensions); reduce L or increase dx"
+            )
+        if self.h0 >= self.R:
+            raise ParameterError(
+                f"h0 = {self.h0!r} m is not allowed: the RMS roughness must be far below the wheel radius "
+                f"R = {self.R!r} m (the window of possible contact would be absurd)"
+            )
+        if self.a / self.dx < 10.0:
+            raise ParameterError(
+                f"dx = {self.dx!r} m is not allowed: the contact radius a = {self.a:.4g} m spans only "
+                f"{self.a / self.dx:.3g} springs; a/dx must be at least 10 (contact not resolved)"
+            )
+        nyquist_cutoff = self.q_max is None
+        if nyquist_cutoff:
             object.__setattr__(self, "q_max", math.pi / self.dx)
         _check_finite_positive("q_max", self.q_max)
         nyquist = math.pi / self.dx
@@ -97,6 +119,12 @@ class Params:
             raise ParameterError(
                 f"q_max = {self.q_max!r} rad/m is not allowed: it must not exceed the Nyquist "
                 f"wavenumber pi/dx = {nyquist:.6g} rad/m"
+            )
+        if self.q_min >= self.q_max and nyquist_cutoff:
+            raise ParameterError(
+                f"dx = {self.dx!r} m is not allowed with q_min = {self.q_min!r} rad/m: its Nyquist wavenumber "
+                f"pi/dx = {nyquist:.6g} rad/m (the default q_max) must exceed q_min: dx must be below "
+                f"pi/q_min = {math.pi / self.q_min:.4g} m"
             )
         if self.q_min >= self.q_max:
             raise ParameterError(
@@ -106,11 +134,6 @@ class Params:
             raise ParameterError(f"n_real = {self.n_real!r} is not allowed: it must be a positive integer")
         if self.n_points < 2:
             raise ParameterError(f"L = {self.L!r} m is not allowed: it must hold at least two springs of dx = {self.dx!r} m")
-        if self.a / self.dx < 10.0:
-            raise ParameterError(
-                f"dx = {self.dx!r} m is not allowed: the contact radius a = {self.a:.4g} m spans only "
-                f"{self.a / self.dx:.3g} springs; a/dx must be at least 10 (contact not resolved)"
-            )
         if self.omega_0 * self.dt >= 2.0:
             raise ParameterError(
                 f"dx = {self.dx!r} m, v0 = {self.v0!r} m/s are not allowed: the step dt = dx/v0 = {self.dt:.4g} s gives "
@@ -212,11 +235,6 @@ class Params:
             last -= 1
         return (first, last) if first <= last else None
 
-    def _band_modes(self) -> np.ndarray:
-        """Indices k >= 1 of the grid wavenumbers q_k = 2 pi k / length inside [q_min, q_max]."""
-        band = self._band_range()
-        return np.arange(band[0], band[1] + 1, dtype=np.int64) if band else np.zeros(0, dtype=np.int64)
-
     def in_band(self, q) -> np.ndarray:
         """Mask of ``q_min <= |q| <= q_max`` (inclusive, to a relative 1e-12 so that a grid
         wavenumber landing on a cutoff up to rounding, e.g. q_k = 2 pi / 5 mm, is inside):
@@ -237,8 +255,13 @@ class Params:
         ``lambda A = h0^2 / (2 (2 pi / L) sum_{q_min <= q_k <= q_max} q_k^(-2H-1))``
         (:func:`physics.lambda_A_discrete`).
         """
-        band_q = self.dq * self._band_modes().astype(np.float64)
-        return physics.lambda_A_discrete(self.h0, self.H, band_q, self.dq)
+        first, last = self._band_range()
+        # in pieces of BAND_PIECE modes, so that a long line's band needs no array over all of it:
+        # lambda A = h0^2 / (2 dq sum), so its inverse adds up over the pieces
+        pieces = [physics.lambda_A_discrete(self.h0, self.H, self.dq * np.arange(
+            start, min(start + BAND_PIECE, last + 1), dtype=np.float64), self.dq)
+            for start in range(first, last + 1, BAND_PIECE)]
+        return pieces[0] if len(pieces) == 1 else 1.0 / sum(1.0 / piece for piece in pieces)
 
     def psd(self, q) -> np.ndarray:
         """Two-sided 1D MDR roughness PSD C_1D(q) = lambda A |q|^(-2H-1) on the band (m^3), eq 33:

@@ -7,6 +7,8 @@ algorithm's registry entry (:mod:`.algorithms`) on lines prepared by
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..devices import device_of, resolve_device, to_warp, warp
@@ -59,6 +61,16 @@ def force_command(prepared: PreparedLines, params: Params, algorithm: str, d: fl
                                                  device=device)
     lifts = lift_table(params, d, prepared.h_top, device) if LIFTS in entry.needs else None
     return entry.force_launch(prepared, params, d, offset, force, lifts, device), force
+
+
+def _check_finite_lines(data) -> None:
+    """Refuse lines holding NaN or infinity (or heights so large that their sum overflows): the
+    force of such a line is meaningless, and its window of possible contact unbounded."""
+    wp = warp()
+    flat = (data if data.is_contiguous else data.contiguous()).flatten()
+    if not math.isfinite(float(wp.utils.array_sum(flat))):
+        raise ParameterError("lines holds heights that are not finite (NaN or infinity): every height must be a finite "
+                             "number of metres")
 
 
 def contact_force(
@@ -119,15 +131,17 @@ def contact_force(
     if not isinstance(lines, wp.array) and np.dtype(getattr(lines, "dtype", np.float64)) != np.float64:
         raise ParameterError(f"lines must be float64 (the force path is float64 throughout), got {lines.dtype}")
     one_line = getattr(lines, "ndim", 2) == 1
-    data = to_warp(np.atleast_2d(lines) if host_input else lines, device)
-    if one_line:
-        data = data.reshape((1, data.shape[0]))
+    data = to_warp(np.ascontiguousarray(np.atleast_2d(lines)) if host_input else lines, device)
+    if one_line and not host_input:
+        data = (data if data.is_contiguous else data.contiguous()).reshape((1, data.shape[0]))
     if data.ndim != 2 or data.shape[1] != params.n_points:
         raise ParameterError(
-            f"lines has shape {tuple(data.shape)}; expected (R, {params.n_points}) for L = {params.L!r} m, dx = {params.dx!r} m"
+            f"lines has shape {tuple(data.shape)}; expected (R, {params.n_points}) or ({params.n_points},) for "
+            f"L = {params.L!r} m, dx = {params.dx!r} m"
         )
     if data.dtype != wp.float64:
         raise ParameterError(f"lines must be float64 (the force path is float64 throughout), got {data.dtype}")
+    _check_finite_lines(data)
     prepared = prepare_lines(data, params, algorithm, boundary, d, device, leaf_size, h_max, band_limit)
     force = launch_force(prepared, params, algorithm, d, device)
     if host_input and device == "cpu":

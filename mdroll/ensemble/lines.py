@@ -12,7 +12,7 @@ from .fft import irfft_rows
 
 
 def realization_indices(realizations) -> np.ndarray:
-    """``int R`` -> 0..R-1; a sequence of non-negative integers -> those indices (int64)."""
+    """``int R`` -> 0..R-1; a sequence of distinct non-negative integers -> those indices (int64)."""
     if isinstance(realizations, (bool, np.bool_)):
         raise ParameterError(f"realizations must be an int or a sequence of ints, got {realizations!r}")
     if isinstance(realizations, (int, np.integer)):
@@ -26,6 +26,11 @@ def realization_indices(realizations) -> np.ndarray:
         raise ParameterError(f"realizations must be a non-empty 1D sequence of integers, got {realizations!r}")
     if indices.min() < 0:
         raise ParameterError(f"realizations must be non-negative indices, got minimum {indices.min()}")
+    unique, counts = np.unique(indices, return_counts=True)
+    if unique.size != indices.size:
+        twice = int(np.argmax(counts > 1))
+        raise ParameterError(f"realizations must not repeat an index (it would count twice): "
+                             f"{int(unique[twice])} is given {int(counts[twice])} times")
     return indices.astype(np.int64)
 
 

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..devices import is_cuda, to_warp, warp
-from ..params import ParameterError, Params
+from ..params import MAX_POINTS, ParameterError, Params
 from .algorithms import BOUNDS, PREFIX, TREE, algorithm_entry, indenter_curvature
 from .arguments import check_choice
 from .fft import fast_length
@@ -29,10 +29,18 @@ DEFAULT_BAND_LIMIT = 2048
 
 def reach(level: float, curvature: float) -> int:
     """Largest m >= 0 with ``curvature m^2 <= level`` (-1 if level < 0); the host twin of
-    :func:`mdroll.kernels.common.reach_inclusive`."""
+    :func:`mdroll.kernels.common.reach_inclusive`. A level whose window would span more than
+    ``MAX_POINTS`` springs (no line holds more), or is not finite, is refused: the loops below
+    then stay a few rounding steps long."""
     if level < 0:
         return -1
-    m = int(math.floor(math.sqrt(level / curvature)))
+    root = math.sqrt(level / curvature) if math.isfinite(level) else math.inf
+    if not root <= MAX_POINTS:
+        raise ParameterError(
+            f"indentation plus height {level:.4g} m gives a window of possible contact of {root:.3g} springs a side, "
+            f"more than the {MAX_POINTS} any line holds: the heights (h0, or the lines given) are absurd"
+        )
+    m = int(math.floor(root))
     while m > 0 and curvature * m * m > level:
         m -= 1
     while curvature * (m + 1) * (m + 1) <= level:
@@ -217,6 +225,11 @@ def prepare_lines(
     work = lines
     if boundary == "periodic":
         first = wheel_margin(params, d, h_max)
+        if 2 * first + 1 > n:  # the wrapped copy would repeat the line: a window wider than the line
+            raise ParameterError(
+                f"L = {params.L!r} m is too short for the periodic boundary at d = {d:.4g} m, max h = {h_max:.4g} m: "
+                f"the window of possible contact spans {2 * first + 1} springs, more than the {n} on the line"
+            )
         work = wp.empty((rows, n + 2 * first), dtype=wp.float64, device=device)
         wp.launch(periodic_extend, dim=work.shape, inputs=[lines, n, first, work], device=device)
     prepared = PreparedLines(lines=work, n_work=work.shape[1], first=first, steps=steps, bounds=bounds, leaf_size=leaf_size,
