@@ -9,8 +9,13 @@ import argparse
 import contextlib
 import dataclasses
 import datetime
+import fcntl
 import json
+import math
+import os
+import secrets
 import sys
+import tempfile
 import tomllib
 from pathlib import Path
 
@@ -45,15 +50,27 @@ def _parse_value(key: str, text: str):
 
 
 def load_config(path: str) -> dict:
-    """Parameters from a TOML file: top-level keys or a [params] table; unknown keys are errors."""
+    """Parameters from a TOML file: top-level keys, or a ``[params]`` table alone; anything else
+    (unknown keys, other tables, top-level keys beside ``[params]``, a ``params`` that is not a
+    table) is refused, naming the key."""
     file = Path(path)
     if not file.is_file():
         raise UsageError(f"config file {path!r} does not exist")
     try:
         data = tomllib.loads(file.read_text())
-    except tomllib.TOMLDecodeError as exc:
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise UsageError(f"config file {path}: {exc}") from None
-    data = data.get("params", data)
+    if "params" in data:
+        if not isinstance(data["params"], dict):
+            raise UsageError(f"config file {path}: 'params' must be a [params] table of parameters, "
+                             f"got {data['params']!r}")
+        beside = sorted(set(data) - {"params"})
+        if beside:
+            raise UsageError(f"config file {path}: {beside} beside the [params] table; put every parameter in it")
+        data = data["params"]
+    tables = sorted(key for key, value in data.items() if isinstance(value, dict))
+    if tables:
+        raise UsageError(f"config file {path}: unknown table(s) {tables}; only [params] is read")
     unknown = sorted(set(data) - set(PARAM_NAMES))
     if unknown:
         raise UsageError(f"config file {path}: unknown parameter(s) {unknown}; valid ones are: {', '.join(PARAM_NAMES)}")
@@ -103,7 +120,10 @@ def _parser() -> argparse.ArgumentParser:
     p_run.add_argument("--batch", type=int, help="realizations per batch (default: from free memory)")
     p_run.add_argument("--memory-limit", type=float, metavar="GIB", help="cap the memory batches are sized from (GiB)")
     p_run.add_argument("--window", action="store_true", default=None, help="Hann window before the FFT")
-    p_run.add_argument("--resume", metavar="DIR", help="continue the interrupted run in DIR (its checkpoint.npz)")
+    p_run.add_argument("--resume", metavar="DIR", help="continue the interrupted run in DIR (its checkpoint.npz); "
+                       "its outputs go there too")
+    p_run.add_argument("--force-physics", action="store_true", help="run parameters outside the model's validity "
+                       "(h0 not small against d0, a time step that shifts the resonance); the summary lists why")
     cluster_options(p_run)
     output(p_run)
 
@@ -145,14 +165,86 @@ def output(p) -> None:
     p.add_argument("--no-progress", action="store_true")
 
 
-def _output_dir(args) -> Path:
-    """The output directory, created; an existing non-empty one only with --force."""
+#: The lock file a live run holds (fcntl.flock) in its output directory.
+LOCK = ".mdroll.lock"
+#: What ``run`` and ``merge`` write; ``--force`` removes the old ones first, so that a finished
+#: run's files never mix with a new run's.
+RUN_OUTPUTS = ("spectra.npz", "summary.json", "accel_psd.png", "force_psd.png")
+_held_locks: list[int] = []
+
+
+def _output_dir(args, clear: tuple[str, ...] = ()) -> Path:
+    """The output directory, checked, created and locked before any work: ``--out`` (an existing
+    non-empty one only with ``--force``, which removes the files in ``clear``), or a new
+    ``mdroll-out/<command>-<timestamp>-<pid>-<random>``, made by one ``mkdir`` (so two runs
+    started in the same second never share it)."""
+    if args.out:
+        out = Path(args.out)
+        _check_directory_path(out, "--out")
+        _make_directory(out, "--out", exist_ok=True)
+        if any(entry.name != LOCK for entry in out.iterdir()) and not args.force:
+            raise UsageError(f"output directory {str(out)!r} exists and is not empty; use --force to write into it")
+        _lock(out, "--out")
+        for name in clear:
+            (out / name).unlink(missing_ok=True)
+        return out
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
-    out = Path(args.out or Path("mdroll-out") / f"{args.command}-{stamp}")
-    if out.exists() and any(out.iterdir()) and not args.force:
-        raise UsageError(f"output directory {str(out)!r} exists and is not empty; use --force to write into it")
-    out.mkdir(parents=True, exist_ok=True)
-    return out
+    base = Path("mdroll-out")
+    _check_directory_path(base, "output directory")
+    _make_directory(base, "output directory", exist_ok=True)
+    for _ in range(100):
+        out = base / f"{args.command}-{stamp}-{os.getpid()}-{secrets.token_hex(3)}"
+        try:
+            out.mkdir()
+        except FileExistsError:
+            continue
+        except OSError as exc:
+            raise UsageError(f"output directory {str(out)!r}: cannot create it ({exc.strerror})") from None
+        _lock(out, "output directory")
+        return out
+    raise UsageError(f"output directory: no free name under {str(base)!r}")  # pragma: no cover - 2^24 names a pid
+
+
+def _check_directory_path(path: Path, option: str) -> None:
+    """Refuse a path that is a file, or lies under one."""
+    for ancestor in (path, *path.parents):
+        if ancestor.exists() or ancestor.is_symlink():
+            if not ancestor.is_dir():
+                where = "is a file" if ancestor == path else f"lies under {str(ancestor)!r}, a file"
+                raise UsageError(f"{option} {str(path)!r} {where}, not a directory")
+            return
+
+
+def _make_directory(path: Path, option: str, exist_ok: bool) -> None:
+    try:
+        path.mkdir(parents=True, exist_ok=exist_ok)
+    except OSError as exc:
+        raise UsageError(f"{option} {str(path)!r}: cannot create the directory ({exc.strerror})") from None
+
+
+def _lock(out: Path, option: str) -> None:
+    """Hold ``out``'s lock file until the command ends (:func:`main` releases it), and check that
+    files can be written there; refuse a directory another live mdroll holds."""
+    try:
+        fd = os.open(out / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+        tempfile.TemporaryFile(dir=out).close()  # a write probe: permissions, read-only file systems
+    except OSError as exc:
+        raise UsageError(f"{option} {str(out)!r}: cannot write there ({exc.strerror})") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        owner = os.read(fd, 32).decode(errors="replace").strip() or "?"
+        os.close(fd)
+        raise UsageError(f"{option} {str(out)!r} is in use by another running mdroll (pid {owner}); wait for it to "
+                         "finish or choose another directory") from None
+    os.ftruncate(fd, 0)
+    os.write(fd, f"{os.getpid()}\n".encode())
+    _held_locks.append(fd)
+
+
+def _release_locks() -> None:
+    while _held_locks:
+        os.close(_held_locks.pop())
 
 
 def _fmt(value) -> str:
@@ -179,14 +271,19 @@ def cmd_run(args) -> int:
     from .devices import resolve_device
     from .ensemble.checkpoint import CHECKPOINT, read_checkpoint
     from .ensemble.pipeline import run_ensemble
+    from .ensemble.validity import parameter_concerns
 
     if args.workers is not None or args.scheduler is not None:
         return _run_distributed(args)
     device = resolve_device(args.device)
     if args.resume:
+        if args.out:
+            raise UsageError(f"--out {args.out} with --resume {args.resume}: a resumed run writes into its own "
+                             "directory; drop --out")
         out = Path(args.resume)
         if not (out / CHECKPOINT).is_file():
             raise UsageError(f"--resume {args.resume}: no {CHECKPOINT} there to continue from")
+        _lock(out, "--resume")
         meta, _ = read_checkpoint(out / CHECKPOINT)
         # the checkpoint's run, with anything given on the command line on top (compared when resuming)
         params = build_params(args, base=meta["params"])
@@ -196,8 +293,12 @@ def cmd_run(args) -> int:
         params = build_params(args)
         settings = {k: v if getattr(args, k) is None else getattr(args, k) for k, v in RUN_DEFAULTS.items()}
         realizations = _realizations(args, params)
-        out = _output_dir(args)
+    concerns = parameter_concerns(params)
+    if concerns and not args.force_physics:
+        raise UsageError("; ".join(concerns) + " (--force-physics runs it anyway)")
     memory = None if args.memory_limit is None else _positive_gib(args.memory_limit)
+    if not args.resume:
+        out = _output_dir(args, clear=RUN_OUTPUTS + (CHECKPOINT,))
     result = run_ensemble(params, realizations=realizations, device=device, batch=args.batch,
                           progress=not args.no_progress, checkpoint=out / CHECKPOINT, resume=bool(args.resume),
                           memory_limit=memory, **settings)
@@ -259,21 +360,28 @@ def _realizations(args, params):
 
 
 def _positive_gib(value: float) -> int:
-    if not value > 0:
-        raise UsageError(f"--memory-limit {value}: must be a positive number of GiB")
+    if not (math.isfinite(value) and value > 0):
+        raise UsageError(f"--memory-limit {value:g}: must be a positive, finite number of GiB")
     return int(value * 2**30)
 
 
 def write_outputs(result, out: Path) -> None:
-    """spectra.npz, summary.json and the two PNGs, and the summary table on stdout."""
+    """spectra.npz, summary.json and the two PNGs, each written atomically (summary.json last:
+    its presence marks a complete output), the physics warnings on stderr, and the summary
+    table on stdout."""
     from .ensemble.result import result_summary
+    from .ensemble.validity import result_concerns
+    from .files import atomic_write
     from .plotting import plot_psd
 
     result.save(out / "spectra.npz")
+    for quantity in ("accel", "force"):
+        with atomic_write(out / f"{quantity}_psd.png") as file:
+            plot_psd(result, quantity, file)
     summary = result_summary(result)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    plot_psd(result, "accel", out / "accel_psd.png")
-    plot_psd(result, "force", out / "force_psd.png")
+    summary["physics_warnings"] = result_concerns(result)
+    with atomic_write(out / "summary.json", "w") as file:
+        json.dump(summary, file, indent=2)
 
     print(f"\n{result.n_real} realizations x {result.steps} steps, {result.algorithm}, {result.mode}, "
           f"{result.boundary} boundary, device {result.device}")
@@ -284,6 +392,8 @@ def write_outputs(result, out: Path) -> None:
     for name, value, unit in rows:
         print(f"  {name:<20} {value:>14}  {unit}")
     print(f"wrote {out}/: spectra.npz summary.json accel_psd.png force_psd.png")
+    for concern in summary["physics_warnings"]:
+        print(f"mdroll: warning: {concern}", file=sys.stderr)
 
 
 def cmd_merge(args) -> int:
@@ -293,8 +403,10 @@ def cmd_merge(args) -> int:
     missing = [str(p) for p in paths if not p.is_file()]
     if missing:
         raise UsageError(f"no spectra.npz at {', '.join(missing)}")
+    if args.out:
+        _check_directory_path(Path(args.out), "--out")
     result = EnsembleResult.merge([EnsembleResult.load(p) for p in paths])
-    write_outputs(result, _output_dir(args))
+    write_outputs(result, _output_dir(args, clear=RUN_OUTPUTS))
     return 0
 
 
@@ -336,15 +448,22 @@ def cmd_bench(args) -> int:
 def main(argv=None) -> int:
     try:
         args = _parser().parse_args(argv)
-        return {"params": cmd_params, "run": cmd_run, "validate": cmd_validate, "bench": cmd_bench,
+        code = {"params": cmd_params, "run": cmd_run, "validate": cmd_validate, "bench": cmd_bench,
                 "merge": cmd_merge}[args.command](args)
+        sys.stdout.flush()  # here, so that a closed pipe is met inside the handlers below
+        return code
     except UsageError as exc:
         print(f"mdroll: error: {exc}", file=sys.stderr)
         return 2
     except ValueError as exc:  # ParameterError, DeviceError: bad values, named in the message
         print(f"mdroll: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # the reader left (mdroll params | head -2): nothing more to say
+        with contextlib.suppress(OSError, ValueError, AttributeError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141  # 128 + SIGPIPE, as a tool killed by the closed pipe reports
     except KeyboardInterrupt:
         print("mdroll: interrupted", file=sys.stderr)
         return 130
-
+    finally:
+        _release_locks()

@@ -1,0 +1,66 @@
+"""Where an ensemble leaves the model's range of validity: the checks behind the CLI's
+``--force-physics`` and the ``physics_warnings`` of a run's summary.
+
+Params only refuses what cannot be computed (omega_0 dt >= 2, a/dx < 10, ...). These checks
+flag what can be computed but no longer means what the thesis's model says:
+
+- ``h0 > MAX_H0_OVER_D0 d0``: the MDR picture of physics.md (a Hertz contact at indentation d0
+  with small height deviations, eq 14 and section 5.1) assumes h0 << d0; beyond it the wheel
+  rides on asperities, the mean force leaves F_N (1.5 MN for F_N = 40 kN at h0 = 1 mm), and the
+  decoupled mode's constant d = d0 is no longer the wheel's indentation.
+- a resonance shift ``2 asin(omega_0 dt / 2) / (omega_0 dt) - 1`` (section 5,
+  :func:`mdroll.physics.euler_resonance_phase`) above ``MAX_RESONANCE_SHIFT``: the time step
+  no longer resolves the contact resonance, and near omega_0 dt = 2 the stiffer contact at
+  peaks pushes the semi-implicit Euler step past its stability bound (an RMS force of
+  8.4 MN at omega_0 dt = 1.99).
+- contact lost (F = 0) on more than ``MAX_LOST_FRACTION`` of the steps: the spectra then hold
+  the gaps of a wheel off the rail, not the linear response of section 5.1.
+"""
+
+from __future__ import annotations
+
+from .. import physics
+from ..params import Params
+
+#: The largest h0 / d0 taken as small roughness.
+MAX_H0_OVER_D0 = 0.1
+#: The largest relative shift of the contact resonance by the semi-implicit Euler step
+#: (1 % at omega_0 dt = 0.49).
+MAX_RESONANCE_SHIFT = 0.01
+#: The largest fraction of the steps (over all realizations) with contact lost.
+MAX_LOST_FRACTION = 0.01
+
+
+def parameter_concerns(params: Params) -> list[str]:
+    """Sentences naming each parameter that takes ``params`` out of the model's validity (empty
+    when none does); see the module's docstring."""
+    concerns = []
+    if params.h0 > MAX_H0_OVER_D0 * params.d0:
+        concerns.append(
+            f"h0 = {params.h0!r} m is {params.h0 / params.d0:.3g} d0 (d0 = {params.d0:.4g} m): the model assumes "
+            f"roughness small against the indentation (h0 <= {MAX_H0_OVER_D0} d0); the wheel rides on asperities "
+            "and the mean force and spectra are not the thesis's"
+        )
+    omega_dt = params.omega_0 * params.dt
+    shift = float(physics.euler_resonance_phase(params.omega_0, params.dt)) / omega_dt - 1.0
+    if shift > MAX_RESONANCE_SHIFT:
+        concerns.append(
+            f"dx = {params.dx!r} m, v0 = {params.v0!r} m/s give omega_0 dt = {omega_dt:.4g} (dt = dx/v0): the time "
+            f"step shifts the contact resonance by {100 * shift:.3g} % (at most {100 * MAX_RESONANCE_SHIFT:g} %) and "
+            "nears the stability bound omega_0 dt < 2; lower dx or raise v0"
+        )
+    return concerns
+
+
+def result_concerns(result) -> list[str]:
+    """:func:`parameter_concerns` of a result's parameters, and the contact lost on more than
+    ``MAX_LOST_FRACTION`` of its steps."""
+    concerns = parameter_concerns(result.params)
+    steps = result.n_real * result.steps
+    if steps and result.contact_lost_steps > MAX_LOST_FRACTION * steps:
+        concerns.append(
+            f"contact was lost (F = 0) on {result.contact_lost_steps} of {steps} steps "
+            f"({100 * result.contact_lost_steps / steps:.3g} %, more than {100 * MAX_LOST_FRACTION:g} %): the spectra "
+            "hold a wheel leaving the rail, not the linear response of section 5.1; lower h0 or v0"
+        )
+    return concerns

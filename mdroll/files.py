@@ -1,0 +1,34 @@
+"""Atomic file output: a file is either the old one or the complete new one, never a part."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from pathlib import Path
+
+# the process's umask, read once (os.umask can only be read by setting it): the permissions an
+# ordinary open() would give, for mkstemp's private 0600 temporary file
+_UMASK = os.umask(0)
+os.umask(_UMASK)
+
+
+@contextlib.contextmanager
+def atomic_write(path, mode: str = "wb"):
+    """Open a temporary file beside ``path`` for writing (``mode`` "wb" or "w"), and on a normal
+    exit flush it to disk and rename it over ``path`` (``os.replace``: atomic on POSIX). On an
+    exception, or a kill before the rename, ``path`` is untouched and the temporary file
+    (``.<name>.<random>.tmp``) is removed or left aside, never read as an output."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        os.fchmod(fd, 0o666 & ~_UMASK)
+        with os.fdopen(fd, mode) as file:
+            yield file
+            file.flush()
+            os.fsync(file.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
