@@ -270,6 +270,7 @@ RUN_DEFAULTS = {"seed": 0, "algorithm": DEFAULT_ALGORITHM, "mode": "decoupled", 
 def cmd_run(args) -> int:
     from .devices import resolve_device
     from .ensemble.checkpoint import CHECKPOINT, read_checkpoint
+    from .ensemble.batching import check_run_fits, realization_bytes
     from .ensemble.pipeline import run_ensemble
     from .ensemble.validity import parameter_concerns
 
@@ -296,7 +297,14 @@ def cmd_run(args) -> int:
     concerns = parameter_concerns(params)
     if concerns and not args.force_physics:
         raise UsageError("; ".join(concerns) + " (--force-physics runs it anyway)")
-    memory = None if args.memory_limit is None else _positive_gib(args.memory_limit)
+    memory = None
+    if args.memory_limit is not None:
+        memory = _positive_gib(args.memory_limit)
+        need = 2 * realization_bytes(params)  # a batch gets half the limit
+        if memory < need:
+            raise UsageError(f"--memory-limit {args.memory_limit:g} GiB is too small: one realization of "
+                             f"{params.n_points} springs needs {need / 2**30:.3g} GiB (a batch gets half the limit)")
+    check_run_fits(params, device, memory)
     if not args.resume:
         out = _output_dir(args, clear=RUN_OUTPUTS + (CHECKPOINT,))
     result = run_ensemble(params, realizations=realizations, device=device, batch=args.batch,
@@ -352,10 +360,14 @@ def _run_distributed(args) -> int:
 
 
 def _realizations(args, params):
+    from .ensemble.batching import check_count_fits
+
     count = params.n_real if args.realizations is None else args.realizations
     first = args.first or 0
     if first < 0:
         raise UsageError(f"--first {first}: the first realization index must be >= 0")
+    if count > 0:
+        check_count_fits(count)
     return range(first, first + count) if count > 0 else count  # count <= 0: run_ensemble names the error
 
 

@@ -67,7 +67,10 @@ class Params:
         Short-wave cutoff (rad/m), at most the Nyquist wavenumber pi/dx. ``None`` (default)
         means pi/dx.
     n_real : int
-        Number of realizations in an ensemble. Default 300.
+        Default number of realizations of a run (``run_ensemble(realizations=None)``, the CLI
+        without ``--realizations``). Default 300. A property of the run, not of the physics:
+        results, checkpoints and merges compare and store :meth:`physical_dict`, and a result
+        keeps its own count (``EnsembleResult.n_real``).
     """
 
     E: float = 210e9
@@ -288,6 +291,11 @@ class Params:
     def as_dict(self) -> dict:
         """The fields as a plain dict (q_max resolved)."""
         return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    def physical_dict(self) -> dict:
+        """:meth:`as_dict` without the run's realization count ``n_real``: what makes two
+        ensembles the same physics (results, checkpoints and merges compare these)."""
+        return {name: value for name, value in self.as_dict().items() if name != "n_real"}
 
     def derived(self) -> dict:
         """Derived quantities as ``{name: (value, unit, description)}``."""

@@ -5,11 +5,53 @@ from __future__ import annotations
 import sys
 
 from ..devices import is_cuda, warp
-from ..params import Params
+from ..params import ParameterError, Params
 
 #: Bytes of device memory per spring of one realization in a batch (lines, half spectrum,
 #: prefix sums, tree, force, acceleration and FFT work space), for sizing batches.
 BYTES_PER_POINT = 96
+#: Host bytes a run keeps per realization index (the int64 array, the Python list of the result
+#: and its JSON text in the checkpoint and spectra file).
+BYTES_PER_INDEX = 64
+
+
+def realization_bytes(params: Params) -> int:
+    """Device (or host, on the CPU) bytes one realization of a batch needs: ``BYTES_PER_POINT``
+    a spring; a batch is sized to half the free memory."""
+    return BYTES_PER_POINT * params.n_points
+
+
+def free_bytes(device: str) -> int:
+    """Free memory of ``device`` (bytes): the CUDA device's, or the host's on the CPU."""
+    return warp().get_device(device).free_memory if is_cuda(device) else host_available_bytes()
+
+
+def check_count_fits(count: int) -> None:
+    """Refuse a realization count whose indices alone would not fit in host memory (a MemoryError
+    at 1e11), before any array of them is made."""
+    need, have = count * BYTES_PER_INDEX, host_available_bytes()
+    if need > have:
+        raise ParameterError(f"realizations = {count} is not allowed: the run's list of realization indices alone "
+                             f"needs {need / 2**30:.3g} GiB of host memory, {have / 2**30:.3g} GiB are available")
+
+
+def check_run_fits(params: Params, device: str, memory_limit: int | None = None) -> None:
+    """Refuse, before any work, a line too long for one realization to fit in half the free
+    memory of ``device`` (or of ``memory_limit`` bytes), naming L and dx."""
+    need = realization_bytes(params)
+    have = free_bytes(device)
+    if is_cuda(device) and need > 0.5 * have:  # the pools' unused memory counts as used: hand it back first
+        release_pools(device)
+        have = free_bytes(device)
+    where = f"the {have / 2**30:.3g} GiB free on {device}"
+    if memory_limit is not None and memory_limit < have:
+        have, where = memory_limit, f"the memory limit of {memory_limit / 2**30:.3g} GiB"
+    if need > 0.5 * have:
+        raise ParameterError(
+            f"L = {params.L!r} m with dx = {params.dx!r} m is too large for {device}: one realization of "
+            f"{params.n_points} springs needs {need / 2**30:.3g} GiB ({BYTES_PER_POINT} B a spring), more than half "
+            f"{where}; reduce L or increase dx"
+        )
 
 
 def default_batch(params: Params, device: str, memory_limit: int | None = None, wanted: int | None = None) -> int:
@@ -21,7 +63,7 @@ def default_batch(params: Params, device: str, memory_limit: int | None = None, 
     memory back first and the device is measured again (a run after larger ones would
     otherwise go in several batches: 2x the time of the coupled dynamics at 300 x 2^20).
     """
-    per_realization = BYTES_PER_POINT * params.n_points
+    per_realization = realization_bytes(params)
 
     def fitting(free: int) -> int:
         if memory_limit is not None:

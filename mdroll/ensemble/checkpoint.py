@@ -8,14 +8,15 @@ of a different run, and continues where the batches stopped.
 from __future__ import annotations
 
 import json
-import os
+import math
+import zipfile
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from .._version import __version__
 from ..devices import warp
+from ..files import atomic_write
 from ..kernels.spectra import LOST, SUM_DEVIATION, SUM_SQUARES
 from ..params import ParameterError, Params
 from .result import STAGES
@@ -38,6 +39,8 @@ class RunTotals:
     force_rms_sum: float = 0.0
     lost: int = 0
     timings: dict = field(default_factory=lambda: dict.fromkeys(STAGES, 0.0))
+    batch: int = 0  # the run's batch size: the most realizations at once, which a resumed run keeps
+    largest_batch: int = 0  # the most realizations a batch has held so far
 
     def add_moments(self, rows: int, force_moments, accel_moments) -> None:
         """Merge a batch's PSD moments (:func:`~mdroll.ensemble.spectra.psd_moments_of_batch`) of
@@ -77,18 +80,15 @@ class RunTotals:
                              page_locked=True, wait=wait))
 
     def save(self, path, key: dict) -> None:
-        """Write the totals and the run's identity ``key`` to ``path`` atomically."""
-        path = Path(path)
+        """Write the totals, the batch size to resume with and the run's identity ``key`` to
+        ``path`` atomically (:func:`mdroll.files.atomic_write`)."""
         meta = {**key, "done": self.done, "steps": self.steps, "force_mean_sum": self.force_mean_sum,
                 "force_rms_sum": self.force_rms_sum, "lost": self.lost, "timings": self.timings, "count": self.force.count,
+                "batch": self.batch, "largest_batch": self.largest_batch,
                 "versions": {"mdroll": __version__, "warp": warp().config.version, "numpy": np.__version__}}
-        tmp = path.with_name(path.name + ".tmp")
-        with open(tmp, "wb") as f:
-            np.savez(f, meta=json.dumps(meta), force_mean=self.force.mean, force_m2=self.force.m2,
+        with atomic_write(path) as file:
+            np.savez(file, meta=json.dumps(meta), force_mean=self.force.mean, force_m2=self.force.m2,
                      accel_mean=self.accel.mean, accel_m2=self.accel.m2)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
 
     @classmethod
     def load(cls, path, key: dict) -> "RunTotals":
@@ -101,17 +101,46 @@ class RunTotals:
         if differences:
             raise ParameterError(f"cannot resume {path}: the run differs from the checkpoint: " + "; ".join(differences))
         totals = cls(done=meta["done"], steps=meta["steps"], force_mean_sum=meta["force_mean_sum"],
-                     force_rms_sum=meta["force_rms_sum"], lost=meta["lost"], timings=meta["timings"])
+                     force_rms_sum=meta["force_rms_sum"], lost=meta["lost"], timings=meta["timings"],
+                     batch=meta["batch"], largest_batch=meta["largest_batch"])
         totals.force, totals.accel = RunningMoments(arrays["force_mean"].size), RunningMoments(arrays["accel_mean"].size)
         totals.force.merge(meta["count"], arrays["force_mean"], arrays["force_m2"])
         totals.accel.merge(meta["count"], arrays["accel_mean"], arrays["accel_m2"])
         return totals
 
 
+#: What a checkpoint's metadata and arrays must hold.
+CHECKPOINT_META = ("params", "seed", "realizations", "done", "steps", "force_mean_sum", "force_rms_sum", "lost",
+                   "timings", "count", "batch", "largest_batch", "versions")
+CHECKPOINT_ARRAYS = ("force_mean", "force_m2", "accel_mean", "accel_m2")
+
+
 def read_checkpoint(path) -> tuple[dict, dict]:
-    """The metadata (run identity, progress, versions) and the accumulator arrays of a checkpoint."""
-    with np.load(path) as data:
-        return json.loads(str(data["meta"])), {k: data[k] for k in data.files if k != "meta"}
+    """The metadata (run identity, progress, batch, versions) and the accumulator arrays of a
+    checkpoint. Refused with a :class:`ParameterError` naming the file: one that cannot be read
+    (empty, truncated, not a checkpoint), one written by another mdroll version (its
+    realizations and spectra need not be this version's), one holding NaN or infinity."""
+    try:
+        with np.load(path) as data:
+            meta = json.loads(str(data["meta"]))
+            arrays = {k: data[k] for k in CHECKPOINT_ARRAYS}
+        missing = [k for k in CHECKPOINT_META if k not in meta]
+    except (OSError, EOFError, ValueError, KeyError, TypeError, zipfile.BadZipFile) as exc:
+        raise ParameterError(f"checkpoint {path} cannot be read: it is empty, truncated or not an mdroll checkpoint "
+                             f"({type(exc).__name__}: {exc}); start the run again without --resume") from None
+    if missing:
+        raise ParameterError(f"checkpoint {path} lacks {missing}: not a checkpoint of this mdroll; start the run again")
+    written_by = meta["versions"].get("mdroll")
+    if written_by != __version__:
+        raise ParameterError(f"checkpoint {path} was written by mdroll {written_by}, this is {__version__}: a run is "
+                             "resumed by the version that started it (realizations and spectra may differ between "
+                             "versions); finish it with that version or start again")
+    sums = [meta[k] for k in ("force_mean_sum", "force_rms_sum")]
+    bad = [k for k, a in arrays.items() if not np.isfinite(a).all()]
+    if bad or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in sums):
+        raise ParameterError(f"checkpoint {path} holds NaN or infinity (in {bad or 'its force sums'}): it cannot be "
+                             "continued; start the run again")
+    return meta, arrays
 
 
 def _short(value) -> str:

@@ -8,6 +8,7 @@ import numpy as np
 
 from ..devices import resolve_device, warp
 from ..params import ParameterError, Params
+from .batching import check_count_fits
 from .fft import irfft_rows
 
 
@@ -18,9 +19,12 @@ def realization_indices(realizations) -> np.ndarray:
     if isinstance(realizations, (int, np.integer)):
         if realizations < 1:
             raise ParameterError(f"realizations = {realizations!r} is not allowed: it must be at least 1")
+        check_count_fits(int(realizations))
         return np.arange(int(realizations), dtype=np.int64)
     if not isinstance(realizations, (Sequence, np.ndarray, range)):
         raise ParameterError(f"realizations must be an int or a sequence of ints, got {type(realizations).__name__}")
+    if isinstance(realizations, range):
+        check_count_fits(len(realizations))
     indices = np.asarray(realizations)
     if indices.ndim != 1 or indices.size == 0 or not np.issubdtype(indices.dtype, np.integer):
         raise ParameterError(f"realizations must be a non-empty 1D sequence of integers, got {realizations!r}")

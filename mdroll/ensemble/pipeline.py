@@ -16,7 +16,7 @@ import numpy as np
 from ..devices import is_cuda, queue_on, resolve_device, to_warp, warp
 from ..kernels.spectra import NOT_FINITE
 from ..params import ParameterError, Params
-from .batching import default_batch
+from .batching import check_run_fits, default_batch
 from .checkpoint import RunTotals
 from .coupled import coupled_series
 from .algorithms import DEFAULT_ALGORITHM, algorithm_entry, coupled_entry
@@ -31,6 +31,9 @@ MODES = ("decoupled", "coupled")
 #: The open-boundary wheel range of an ensemble is set from d0 + H_BOUND_SIGMAS * h0, not from
 #: each batch's maximum, so every batch has the same steps. Forces stay exact either way.
 H_BOUND_SIGMAS = 6.0
+#: With a checkpoint, batches are sized so that one takes about this long (s): a kill loses at
+#: most about this much work.
+CHECKPOINT_SECONDS = 30.0
 
 
 class NonFiniteError(FloatingPointError):
@@ -71,9 +74,14 @@ def run_ensemble(
     per-bin mean and variance. Memory stays O(batch x n). ``leaf_size``: springs per tree leaf.
 
     ``checkpoint``: a file the running accumulators are written to after every batch,
-    atomically (temporary file, then rename). With ``resume=True`` an existing checkpoint of
-    the same run is continued where it stopped (a different run is refused, naming the
-    differences); the result is the uninterrupted run's to rounding.
+    atomically (temporary file, then rename). With a checkpoint, batches are also sized by
+    time: the first holds one realization, each next one as many as the last ran in
+    ``CHECKPOINT_SECONDS`` (never more than ``batch``), so that a kill loses at most about that
+    much work whatever the batch size. With ``resume=True`` an existing checkpoint of the same
+    run is continued where it stopped, with the run's batch size unless ``batch`` or
+    ``memory_limit`` is given (a different run is refused, naming the differences); the result
+    is the uninterrupted run's to rounding. A line too long for one realization to fit in
+    memory is refused before any work (:func:`~mdroll.ensemble.batching.check_run_fits`).
     """
     # every argument checked here, once
     check_params(params)
@@ -90,16 +98,20 @@ def run_ensemble(
     if batch is not None:
         batch = check_integer("batch", batch, 1, "realizations")
     device = resolve_device(device)
-    if batch is None:
-        batch = default_batch(params, device, memory_limit, wanted=len(indices))
+    check_run_fits(params, device, memory_limit)
 
-    key = {"params": params.as_dict(), "seed": seed, "realizations": indices.tolist(), "algorithm": algorithm,
+    key = {"params": params.physical_dict(), "seed": seed, "realizations": indices.tolist(), "algorithm": algorithm,
            "mode": mode, "boundary": boundary, "window": window, "leaf_size": leaf_size}
     totals = RunTotals()
     if resume:
         if checkpoint is None or not Path(checkpoint).exists():
             raise ParameterError(f"cannot resume: no checkpoint at {checkpoint!s}")
         totals = RunTotals.load(checkpoint, key)
+        if batch is None and memory_limit is None:
+            batch = totals.batch
+    if batch is None:
+        batch = default_batch(params, device, memory_limit, wanted=len(indices))
+    totals.batch = int(batch)
     d0 = params.d0
     h_bound = H_BOUND_SIGMAS * params.h0
     timings = totals.timings
@@ -108,8 +120,12 @@ def run_ensemble(
 
     stage = _StageClock(device, timings)
     rows = None
-    for start in range(totals.done, len(indices), batch):
-        idx = indices[start:start + batch]
+    start = totals.done
+    size = batch if checkpoint is None else 1
+    while start < len(indices):
+        began = time.perf_counter()
+        idx = indices[start:start + size]
+        last = start + len(idx) >= len(indices)
         lines = stage("generate", lambda: to_warp(rough_lines(params, seed, idx, device=device), device))
         prepared = stage("build", lambda: prepare_lines(lines, params, algorithm, boundary, d0, device, leaf_size, h_bound))
         totals.steps = prepared.steps
@@ -125,7 +141,7 @@ def run_ensemble(
             "spectra", lambda: psd_moments_of_batch(force, accel, sums, params, device, window))
         with queue_on(device):
             stage("spectra", lambda: totals.add_moments(len(idx), force_moments, accel_moments))
-            if start + batch >= len(indices):
+            if last:
                 # the result, queued before the last batch's wait, which then covers its copy too
                 rows = totals.spectra_on_host(params, wait=False)
         # the batch's one wait: its checks and force sums need the sums and flags on the host (a
@@ -135,9 +151,14 @@ def run_ensemble(
         _raise_on_rows(host_sums[:, NOT_FINITE] > 0, "force", "force" if decoupled else "response", idx)
         _raise_on_rows(psd_bad != 0, "force or acceleration PSD", "spectra", idx)
         totals.add_sums(host_sums, params.F_N)
+        totals.largest_batch = max(totals.largest_batch, len(idx))
         if checkpoint is not None:
             totals.save(checkpoint, key)
+            # the next batch: what this one's rate does in CHECKPOINT_SECONDS, within the memory's batch
+            rate = len(idx) / max(time.perf_counter() - began, 1e-9)
+            size = int(min(batch, max(1, rate * CHECKPOINT_SECONDS)))
         bar.update(len(idx))
+        start += len(idx)
         del lines, prepared, force, accel
     bar.close()
 
@@ -149,9 +170,10 @@ def run_ensemble(
     n = len(indices)
     return EnsembleResult(
         q=q, omega=omega, force_psd=force_psd, force_psd_stderr=force_psd_stderr, accel_psd=accel_psd,
-        accel_psd_stderr=accel_psd_stderr, n_real=n, params=params, seed=seed, algorithm=algorithm, mode=mode, boundary=boundary,
-        device=device, steps=totals.steps, force_mean=totals.force_mean_sum / n, force_rms=totals.force_rms_sum / n,
-        contact_lost_steps=totals.lost, timings=timings, batch=int(batch), realizations=indices.tolist(),
+        accel_psd_stderr=accel_psd_stderr, n_real=n, params=params.replace(n_real=n), seed=seed, algorithm=algorithm,
+        mode=mode, boundary=boundary, device=device, steps=totals.steps, force_mean=totals.force_mean_sum / n,
+        force_rms=totals.force_rms_sum / n, contact_lost_steps=totals.lost, timings=timings,
+        batch=totals.largest_batch, realizations=indices.tolist(), window=bool(window),
     )
 
 

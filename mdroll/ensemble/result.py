@@ -3,17 +3,25 @@
 from __future__ import annotations
 
 import json
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from .._version import __version__
+from ..files import atomic_write
 from ..params import ParameterError, Params
 from .spectra import RunningMoments
 
 #: The stages of a run whose times a result reports, in the order a batch passes them.
 STAGES = ("generate", "build", "force", "response", "spectra")
+#: The arrays of a spectra file, and the fields its metadata holds beside the parameters.
+RESULT_ARRAYS = ("q", "omega", "force_psd", "force_psd_stderr", "accel_psd", "accel_psd_stderr")
+RESULT_META = ("n_real", "seed", "algorithm", "mode", "boundary", "window", "device", "steps", "force_mean",
+               "force_rms", "contact_lost_steps", "timings", "batch", "realizations")
+#: The run settings merged results must share (besides their physical parameters).
+MERGE_SAME = ("seed", "algorithm", "mode", "boundary", "window", "steps")
 
 
 @dataclass
@@ -32,7 +40,10 @@ class EnsembleResult:
     contact_lost_steps : steps with F = 0 (the wheel off the rail) summed over the ensemble.
     timings : seconds per stage (:data:`STAGES`): on CUDA the device's time, from CUDA events
         around each stage; on the CPU wall time.
-    batch : realizations per batch; realizations : the realization indices, in order.
+    batch : the largest batch (realizations at once) the run used; realizations : the
+        realization indices, in order. n_real: their count (``params.n_real`` equals it).
+    window : whether a Hann window was applied before the FFTs (None: unknown, a file written
+        before the window was recorded); results differing in it are never merged.
 
     Plots: :func:`mdroll.plotting.plot_psd`.
     """
@@ -57,39 +68,59 @@ class EnsembleResult:
     timings: dict = field(default_factory=dict)
     batch: int = 0
     realizations: list = field(default_factory=list)
+    window: bool | None = False
 
     def save(self, path) -> Path:
-        """Write an ``.npz`` with the spectra, the parameters and the provenance."""
+        """Write an ``.npz`` with the spectra, the parameters (:meth:`Params.physical_dict`; the
+        count is ``n_real``) and the provenance, atomically (:func:`mdroll.files.atomic_write`).
+        A name without ``.npz`` gets it appended, as :func:`numpy.savez` does."""
         path = Path(path)
-        meta = {
-            "params": self.params.as_dict(),
-            **{k: getattr(self, k) for k in ("n_real", "seed", "algorithm", "mode", "boundary", "device", "steps",
-                                               "force_mean", "force_rms", "contact_lost_steps", "timings", "batch",
-                                               "realizations")},
-            "mdroll_version": __version__,
-        }
-        np.savez(path, q=self.q, omega=self.omega, force_psd=self.force_psd, force_psd_stderr=self.force_psd_stderr,
-                 accel_psd=self.accel_psd, accel_psd_stderr=self.accel_psd_stderr, meta=json.dumps(meta))
+        if path.suffix != ".npz":
+            path = path.with_name(path.name + ".npz")
+        meta = {"params": self.params.physical_dict(), **{k: getattr(self, k) for k in RESULT_META},
+                "mdroll_version": __version__}
+        with atomic_write(path) as file:
+            np.savez(file, **{k: getattr(self, k) for k in RESULT_ARRAYS}, meta=json.dumps(meta))
         return path
 
     @classmethod
     def load(cls, path) -> "EnsembleResult":
-        with np.load(path) as data:
-            meta = json.loads(str(data["meta"]))
-            arrays = {k: data[k] for k in ("q", "omega", "force_psd", "force_psd_stderr", "accel_psd", "accel_psd_stderr")}
-        meta.pop("mdroll_version", None)
-        return cls(params=Params(**meta.pop("params")), **arrays, **meta)
+        """The result saved at ``path`` by :meth:`save`; anything else (a truncated or foreign
+        file, a checkpoint) is refused with a :class:`ParameterError` naming the file."""
+        try:
+            with np.load(path) as data:
+                meta = json.loads(str(data["meta"]))
+                if "done" in meta:
+                    raise ParameterError(f"{path} is a checkpoint of an unfinished run, not its spectra: finish the "
+                                         "run with mdroll run --resume DIR first")
+                arrays = {k: data[k] for k in RESULT_ARRAYS}
+            meta.pop("mdroll_version", None)
+            meta.setdefault("window", None)  # files from before the window was recorded
+            params = Params(**{**meta.pop("params"), "n_real": meta["n_real"]})
+            return cls(params=params, **arrays, **meta)
+        except ParameterError:
+            raise
+        except (OSError, EOFError, ValueError, KeyError, TypeError, zipfile.BadZipFile) as exc:
+            raise ParameterError(f"{path} is not an mdroll spectra file (as written by mdroll run or merge): it is "
+                                 f"truncated, corrupt or of another kind ({type(exc).__name__}: {exc})") from None
 
     @classmethod
     def merge(cls, results: list["EnsembleResult"]) -> "EnsembleResult":
         """One result from ensembles of disjoint realizations of the same run (say, one per
-        process): per-bin means and variances merged exactly (Chan et al.)."""
+        process, of any sizes): per-bin means and variances merged exactly (Chan et al.).
+        Results that differ in a parameter (other than their count) or a run setting are
+        refused, naming the field and both values."""
+        if not results:
+            raise ParameterError("merge needs at least one result, got none")
         first = results[0]
-        same = ("params", "seed", "algorithm", "mode", "boundary", "steps")
-        for other in results[1:]:
-            differ = [k for k in same if getattr(other, k) != getattr(first, k)]
+        physics = first.params.physical_dict()
+        for number, other in enumerate(results[1:], start=2):
+            theirs = other.params.physical_dict()
+            differ = [f"{k}: {v!r} vs {theirs[k]!r}" for k, v in physics.items() if theirs[k] != v]
+            differ += [f"{k}: {getattr(first, k)!r} vs {getattr(other, k)!r}" for k in MERGE_SAME
+                       if getattr(other, k) != getattr(first, k)]
             if differ:
-                raise ParameterError(f"cannot merge results that differ in {differ}")
+                raise ParameterError(f"cannot merge results 1 and {number}: they differ in " + "; ".join(differ))
         indices = [i for r in results for i in r.realizations]
         if len(set(indices)) != len(indices):
             raise ParameterError("cannot merge results that share realizations (each would count twice)")
@@ -104,24 +135,26 @@ class EnsembleResult:
         return cls(
             q=first.q, omega=first.omega, force_psd=moments["force_psd"].mean, force_psd_stderr=moments["force_psd"].stderr,
             accel_psd=moments["accel_psd"].mean, accel_psd_stderr=moments["accel_psd"].stderr, n_real=n,
-            params=first.params, seed=first.seed, algorithm=first.algorithm, mode=first.mode, boundary=first.boundary,
+            params=first.params.replace(n_real=n), seed=first.seed, algorithm=first.algorithm, mode=first.mode, boundary=first.boundary,
             device=",".join(sorted({r.device for r in results})), steps=first.steps,
             force_mean=sum(r.force_mean * r.n_real for r in results) / n,
             force_rms=sum(r.force_rms * r.n_real for r in results) / n,
             contact_lost_steps=sum(r.contact_lost_steps for r in results),
-            timings={k: sum(r.timings.get(k, 0.0) for r in results) for k in STAGES}, batch=first.batch,
-            realizations=indices,
+            timings={k: sum(r.timings.get(k, 0.0) for r in results) for k in STAGES},
+            batch=max(r.batch for r in results), realizations=indices, window=first.window,
         )
 
 
 def result_summary(result: EnsembleResult) -> dict:
-    """JSON-ready summary: parameters, derived values, RMS force, timings, device."""
+    """JSON-ready summary: parameters, derived values, the run's settings (realization count,
+    window, the largest batch used), RMS force, timings, device, mdroll version."""
     p = result.params
     return {
-        "params": p.as_dict(),
+        "params": p.physical_dict(),
         "derived": {k: {"value": v, "unit": u} for k, (v, u, _) in p.derived().items()},
         "n_real": result.n_real, "seed": result.seed, "algorithm": result.algorithm, "mode": result.mode,
-        "boundary": result.boundary, "device": result.device, "steps": result.steps,
+        "boundary": result.boundary, "window": result.window, "batch": result.batch, "device": result.device,
+        "steps": result.steps, "mdroll_version": __version__,
         "force_mean_N": result.force_mean, "force_rms_N": result.force_rms,
         "contact_lost_steps": result.contact_lost_steps,
         "timings_s": result.timings,
