@@ -4,6 +4,7 @@ deterministic ensembles, resumable runs after kill -9, bounded memory."""
 import inspect
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -14,8 +15,10 @@ import numpy as np
 import pytest
 import warp as wp
 
-from mdroll import EnsembleResult, Params, contact_force, rough_lines, run_ensemble
-from mdroll.ensemble import batching, pipeline
+from mdroll import EnsembleResult, Params, __version__ as mdroll_version, contact_force, rough_lines, run_ensemble
+from mdroll.cli import LOCK, RUN_OUTPUTS, main as cli_main
+from mdroll.ensemble import batching, checkpoint as checkpoint_module, pipeline, validity
+from mdroll.ensemble.force import reach
 from mdroll.ensemble.checkpoint import CHECKPOINT, read_checkpoint
 from mdroll.ensemble.pipeline import NonFiniteError
 
@@ -189,17 +192,24 @@ def test_cpu_and_cuda_give_the_same_spectra(cuda_devices):
         np.testing.assert_allclose(gpu.accel_psd, cpu.accel_psd, rtol=1e-9, atol=1e-12 * cpu.accel_psd.max())
 
 
-def test_split_across_processes_and_merged(tmp_path, cli):
+def test_split_across_processes_and_merged(quick_plots, tmp_path, capsys):
+    """Unequal parts started together without --out (issue 16: they shared the per-second
+    directory, only the last survived, and merge refused the unequal counts): each keeps its own
+    locked directory and the merge is the whole ensemble."""
     common = ["--set", "L=0.05", "--device", "cpu", "--no-progress", "--seed", "4"]
-    procs = [subprocess.Popen([sys.executable, "-m", "mdroll", "run", "--realizations", "3", "--first", str(first),
-                               "--out", str(tmp_path / f"part{first}"), *common], cwd=ROOT,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE) for first in (0, 3)]
-    assert all(p.wait(timeout=300) == 0 for p in procs)
-    assert cli("merge", str(tmp_path / "part0"), str(tmp_path / "part3"), "--out", str(tmp_path / "merged"),
-                "--no-progress").returncode == 0
-    merged = EnsembleResult.load(tmp_path / "merged" / "spectra.npz")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    procs = [subprocess.Popen([sys.executable, "-m", "mdroll", "run", "--first", str(first), "--realizations", str(count),
+                               *common], cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+             for first, count in ((0, 4), (4, 2))]
+    assert all(p.wait(timeout=300) == 0 for p in procs), [p.stderr.read() for p in procs]
+    parts = sorted((tmp_path / "mdroll-out").iterdir())
+    assert len(parts) == 2
+    merged_dir = tmp_path / "merged"
+    assert _main(capsys, "merge", *parts, "--out", merged_dir, "--no-progress")[0] == 0
+    merged = EnsembleResult.load(merged_dir / "spectra.npz")
     whole = run_ensemble(P, seed=4, device="cpu", progress=False)
-    assert merged.n_real == 6 and sorted(merged.realizations) == list(range(6))
+    assert merged.n_real == 6 and merged.params.n_real == 6 and sorted(merged.realizations) == list(range(6))
+    assert merged.params == whole.params and json.loads((merged_dir / "summary.json").read_text())["n_real"] == 6
     np.testing.assert_allclose(merged.accel_psd, whole.accel_psd, rtol=1e-12, atol=1e-12 * whole.accel_psd.max())
     np.testing.assert_allclose(merged.force_psd_stderr, whole.force_psd_stderr, rtol=1e-10)
     assert merged.force_rms == pytest.approx(whole.force_rms, rel=1e-12)
@@ -229,7 +239,7 @@ def test_kill_9_then_resume_equals_an_uninterrupted_run(tmp_path, cli, one_line_
     refused = cli("run", "--resume", str(out), "--set", "H=0.5", "--no-progress")
     one_line_error(refused, "H: 0.7 (checkpoint) vs 0.5 (now)")
 
-    resumed = cli("run", "--resume", str(out), "--no-progress", "--device", "cpu")
+    resumed = cli("run", "--resume", str(out), "--no-progress", "--device", "cpu", "--batch", "50")  # not its 2
     assert resumed.returncode == 0, resumed.stderr
     result = EnsembleResult.load(out / "spectra.npz")
     whole = run_ensemble(Params(L=0.05), seed=11, realizations=400, device="cpu", batch=50, progress=False)
@@ -256,3 +266,296 @@ def test_thesis_scale_batches_fit_a_24_gib_host():
     batch = batching.default_batch(thesis, "cpu", memory_limit=24 * 2**30)
     assert 1 <= batch < thesis.n_real
     assert batch * batching.BYTES_PER_POINT * thesis.n_points <= 12 * 2**30
+
+
+# ============================================================================= issue 16
+# Each case below failed before its fix (a traceback, a hang, a silently wrong or lost result).
+
+@pytest.fixture
+def quick_plots(monkeypatch):
+    """PNGs as a few bytes: the plots take most of a tiny run's second, and are not what these tests check."""
+    import mdroll.plotting
+
+    monkeypatch.setattr(mdroll.plotting, "plot_psd", lambda result, quantity, path: path.write(b"\x89PNG"))
+
+
+TINY = ["--set", "L=0.025", "--set", "dx=2.5e-5", "--device", "cpu", "--no-progress"]
+T = Params(L=0.025, dx=2.5e-5)
+
+
+def _main(capsys, *args):
+    """``mdroll args`` in this process: (exit code, stdout, stderr lines other than Warp's CUDA notice)."""
+    code = cli_main([str(a) for a in args])
+    captured = capsys.readouterr()
+    return code, captured.out, [line for line in captured.err.splitlines() if "CUDA driver" not in line]
+
+
+def _refused(capsys, needle, *args):
+    code, _, err = _main(capsys, *args)
+    assert code == 2 and len(err) == 1 and needle in err[0], err
+    return err[0]
+
+
+API_CASES_16 = [
+    (lambda: contact_force(np.full((1, P.n_points), np.nan), P), "not finite"),
+    (lambda: contact_force(np.full(P.n_points, np.inf), P), "not finite"),
+    (lambda: contact_force(rough_lines(P, 0, 1), P, h_max=1e100), "absurd"),
+    (lambda: reach(1e100, 1e-10), "absurd"),
+    (lambda: run_ensemble(P, realizations=[0, 0], progress=False), "repeat"),
+    (lambda: EnsembleResult.merge([]), "at least one"),
+    (lambda: Params(L=1e6), "L = 1000000.0 m"),
+    (lambda: Params(h0=1e100), "h0 = 1e+100"),
+    (lambda: Params(dx=1e-4, q_min=1e5), "dx = 0.0001 m"),
+    (lambda: rough_lines(P, 0, 10**14), "realizations = 100000000000000"),
+    (lambda: run_ensemble(P, memory_limit=1000, progress=False, device="cpu"), "reduce L or increase dx"),
+]
+
+
+@pytest.mark.parametrize("call,needle", API_CASES_16, ids=[c[1] for c in API_CASES_16])
+def test_api_refuses_absurd_input_naming_it(call, needle):
+    with pytest.raises(ValueError, match=re.escape(needle)):
+        call()
+
+
+def test_contact_force_takes_one_line():
+    lines = rough_lines(P, 0, 2)
+    np.testing.assert_array_equal(contact_force(lines[0], P), contact_force(lines, P)[0])
+
+
+TOML_CASES = [
+    ("params = 5\n", "'params' must be a [params] table"),
+    ("H = 0.5\n[params]\nL = 0.05\n", "['H'] beside the [params] table"),
+    ("H = 0.5\n[run]\nseed = 3\n", "unknown table(s) ['run']"),
+    ("[params]\nL = 0.05\n[params.extra]\nx = 1\n", "unknown table(s) ['extra']"),
+]
+
+
+@pytest.mark.parametrize("text,needle", TOML_CASES, ids=[c[1] for c in TOML_CASES])
+def test_config_refuses_keys_it_would_ignore(tmp_path, capsys, text, needle):
+    config = tmp_path / "c.toml"
+    config.write_text(text)
+    _refused(capsys, needle, "params", "--config", config)
+
+
+CLI_CASES_16 = [
+    (["run", "--set", "h0=1e100"], "h0 = 1e+100"),  # hung in reach()
+    (["run", "--set", "h0=1e300"], "h0 = 1e+300"),  # OverflowError
+    (["run", "--set", "L=1e6"], "L = 1000000.0 m"),  # Warp's "32-bit shape"
+    (["params", "--set", "L=1e6"], "L = 1000000.0 m"),  # tried to allocate 744 GiB
+    (["run", "--realizations", "100000000000000", *TINY], "realizations = 100000000000000"),  # MemoryError
+    (["run", "--memory-limit", "inf"], "--memory-limit inf"),
+    (["run", "--memory-limit", "1e-12", *TINY], "--memory-limit 1e-12 GiB"),  # was in bytes
+    (["run", "--set", "dx=6e-3"], "dx = 0.006"),  # was about q_min
+    (["run", "--set", "h0=1e-5", *TINY], "--force-physics"),  # h0 = 0.19 d0 ran without a word
+    (["run", "--mode", "coupled", "--set", "v0=3.84e-3", "--set", "L=0.05", "--device", "cpu"], "omega_0 dt = 1.99"),  # RMS 8.4 MN, no word
+    (["run", "--resume", "somewhere", "--out", "elsewhere"], "drop --out"),  # --out was ignored
+]
+
+
+@pytest.mark.parametrize("args,needle", CLI_CASES_16, ids=[c[1] for c in CLI_CASES_16])
+def test_cli_refuses_in_one_line_naming_the_option(tmp_path, monkeypatch, capsys, args, needle):
+    monkeypatch.chdir(tmp_path)
+    _refused(capsys, needle, *args)
+    assert not (tmp_path / "mdroll-out").exists() or not any((tmp_path / "mdroll-out").iterdir())
+
+
+def test_a_line_too_long_for_memory_is_refused_before_work(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(batching, "host_available_bytes", lambda: 16 * 2**30)
+    monkeypatch.chdir(tmp_path)
+    # L = 1e3 m: 2e8 springs, 17.9 GiB a realization (it computed 45 s, then failed to allocate)
+    line = _refused(capsys, "reduce L or increase dx", "run", "--set", "L=1e3", "--device", "cpu")
+    assert "L = 1000.0 m" in line and "17.9 GiB" in line
+    assert not (tmp_path / "mdroll-out").exists()
+
+
+def test_out_paths_are_checked_before_any_work(tmp_path, capsys):
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    _refused(capsys, "is a file", "run", "--out", afile, *TINY)
+    _refused(capsys, "lies under", "run", "--out", afile / "sub", *TINY)
+    if os.geteuid() == 0:  # root ignores permission bits: a read-only file system instead
+        if os.access("/proc", os.W_OK) and not Path("/proc/1").exists():
+            pytest.skip("no read-only file system to test with")
+        _refused(capsys, "cannot", "run", "--out", "/proc/mdroll-out", *TINY)
+        _refused(capsys, "cannot write there", "run", "--out", "/proc/self", "--force", *TINY)
+    else:
+        readonly = tmp_path / "readonly"
+        readonly.mkdir()
+        readonly.chmod(0o555)
+        _refused(capsys, "cannot write there", "run", "--out", readonly, *TINY)
+
+
+def test_a_directory_a_live_run_holds_is_refused(quick_plots, tmp_path, capsys):
+    import fcntl
+
+    out = tmp_path / "run"
+    out.mkdir()
+    with open(out / LOCK, "w") as held:
+        fcntl.flock(held, fcntl.LOCK_EX)
+        _refused(capsys, "in use by another running mdroll", "run", "--out", out, "--force", "--realizations", 1, *TINY)
+    assert _main(capsys, "run", "--out", out, "--force", "--realizations", 1, *TINY)[0] == 0
+
+
+def test_merge_names_the_differing_field_and_both_values(tmp_path):
+    a = run_ensemble(T, realizations=[0], device="cpu", progress=False)
+    b = run_ensemble(T.replace(H=0.5), realizations=[1], device="cpu", progress=False)
+    w = run_ensemble(T, realizations=[2], device="cpu", progress=False, window=True)
+    with pytest.raises(ValueError, match="H: 0.7 vs 0.5"):
+        EnsembleResult.merge([a, b])
+    # windowed with unwindowed was merged silently (PSD median 0.59x); the window survives a file
+    w = EnsembleResult.load(w.save(tmp_path / "w.npz"))
+    assert w.window is True
+    with pytest.raises(ValueError, match="window: False vs True"):
+        EnsembleResult.merge([a, w])
+
+
+def _finished_run(tmp_path, capsys, name="run", *extra):
+    out = tmp_path / name
+    assert _main(capsys, "run", *TINY, "--realizations", 2, "--out", out, *extra)[0] == 0
+    return out
+
+
+def test_merge_refuses_files_that_are_not_spectra(quick_plots, tmp_path, capsys):
+    out = _finished_run(tmp_path, capsys)
+    data = (out / "spectra.npz").read_bytes()
+    (tmp_path / "truncated.npz").write_bytes(data[: len(data) // 2])
+    _refused(capsys, "truncated.npz is not an mdroll spectra file", "merge", tmp_path / "truncated.npz")
+    _refused(capsys, "is a checkpoint of an unfinished run", "merge", out / CHECKPOINT)
+    np.savez(tmp_path / "pickled.npz", meta=np.array([{"a": 1}], dtype=object))
+    line = _refused(capsys, "pickled.npz is not an mdroll spectra file", "merge", tmp_path / "pickled.npz")
+    assert "allow_pickle" not in line.split("(")[0]
+
+
+def _rewrite_checkpoint(path, meta_change=None, arrays_change=None):
+    meta, arrays = read_checkpoint(path)
+    meta.update(meta_change or {})
+    arrays.update(arrays_change or {})
+    np.savez(path, meta=json.dumps(meta), **arrays)
+
+
+def test_resume_refuses_a_checkpoint_it_cannot_trust(quick_plots, tmp_path, capsys):
+    out = _finished_run(tmp_path, capsys)
+    checkpoint = out / CHECKPOINT
+    good = checkpoint.read_bytes()
+    cases = [
+        (lambda: checkpoint.write_bytes(b""), "cannot be read"),
+        (lambda: checkpoint.write_bytes(good[: len(good) // 2]), "cannot be read"),
+        (lambda: np.savez(checkpoint, other=np.zeros(2)), "cannot be read"),
+        (lambda: _rewrite_checkpoint(checkpoint, arrays_change={"force_m2": np.full(3, np.nan)}), "NaN"),
+        (lambda: _rewrite_checkpoint(checkpoint, {"versions": {"mdroll": "0.0.1"}}), "written by mdroll 0.0.1"),
+    ]
+    for spoil, needle in cases:
+        checkpoint.write_bytes(good)
+        spoil()
+        _refused(capsys, needle, "run", "--resume", out, "--device", "cpu", "--no-progress")
+    checkpoint.write_bytes(good)
+    assert _main(capsys, "run", "--resume", out, "--device", "cpu", "--no-progress")[0] == 0
+
+
+def test_outputs_are_written_atomically(quick_plots, tmp_path, monkeypatch, capsys):
+    from mdroll.ensemble import result as result_module
+    from mdroll.files import atomic_write
+
+    target = tmp_path / "kept.txt"
+    target.write_text("old")
+    with pytest.raises(RuntimeError):
+        with atomic_write(target, "w") as file:
+            file.write("half of the new")
+            raise RuntimeError("killed while writing")
+    assert target.read_text() == "old" and os.listdir(tmp_path) == ["kept.txt"]
+
+    out = _finished_run(tmp_path, capsys)
+    before = (out / "spectra.npz").read_bytes()
+
+    def dies_while_writing(file, **arrays):
+        file.write(b"PK\x03\x04 a part of a zip")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(result_module.np, "savez", dies_while_writing)
+    with pytest.raises(KeyboardInterrupt):
+        EnsembleResult.load(out / "spectra.npz").save(out / "spectra.npz")
+    assert (out / "spectra.npz").read_bytes() == before
+
+
+def test_force_into_a_finished_run_never_mixes_old_and_new(quick_plots, tmp_path, monkeypatch, capsys):
+    out = _finished_run(tmp_path, capsys)
+
+    def killed(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(pipeline, "rough_lines", killed)
+    assert _main(capsys, "run", *TINY, "--realizations", 2, "--out", out, "--force", "--set", "H=0.5")[0] == 130
+    assert not [p.name for p in out.iterdir() if p.name in RUN_OUTPUTS + (CHECKPOINT,)]
+
+
+def test_resume_keeps_the_batch_and_checkpoints_by_time(tmp_path, monkeypatch):
+    checkpoint = tmp_path / CHECKPOINT
+    saves = []
+    real_save = checkpoint_module.RunTotals.save
+
+    def save_then_die(self, path, key):
+        real_save(self, path, key)
+        saves.append(self.done)
+        if len(saves) == 2:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(checkpoint_module.RunTotals, "save", save_then_die)
+    with pytest.raises(KeyboardInterrupt):
+        run_ensemble(T, realizations=7, batch=2, device="cpu", progress=False, checkpoint=checkpoint)
+    assert read_checkpoint(checkpoint)[0]["batch"] == 2
+    # resumed without --batch: the run's 2, not the thousands free memory allows (7.6x the memory)
+    resumed = run_ensemble(T, realizations=7, device="cpu", progress=False, checkpoint=checkpoint, resume=True)
+    assert resumed.batch == 2
+    whole = run_ensemble(T, realizations=7, device="cpu", progress=False)
+    np.testing.assert_allclose(resumed.accel_psd, whole.accel_psd, rtol=1e-12, atol=1e-12 * whole.accel_psd.max())
+
+    # a small run that memory would take as one batch checkpoints every CHECKPOINT_SECONDS of work
+    saves.clear()
+    monkeypatch.setattr(checkpoint_module.RunTotals, "save", lambda self, path, key: saves.append(self.done))
+    monkeypatch.setattr(pipeline, "CHECKPOINT_SECONDS", 1e-9)
+    timed = run_ensemble(T, realizations=7, device="cpu", progress=False, checkpoint=tmp_path / "t.npz")
+    assert saves == list(range(1, 8)) and timed.batch == 1
+    assert whole.batch == 7  # without a checkpoint: one batch
+    np.testing.assert_allclose(timed.force_psd, whole.force_psd, rtol=1e-12, atol=1e-12 * whole.force_psd.max())
+
+
+def test_summary_records_the_run_as_it_was(quick_plots, tmp_path, capsys):
+    out = _finished_run(tmp_path, capsys, "run", "--window")
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["batch"] <= 2 and summary["window"] is True and summary["n_real"] == 2
+    assert "n_real" not in summary["params"] and summary["physics_warnings"] == []
+    assert summary["mdroll_version"] == mdroll_version
+    assert read_checkpoint(out / CHECKPOINT)[0]["window"] is True
+
+
+def test_physics_outside_the_model_is_flagged():
+    assert validity.parameter_concerns(Params()) == []
+    assert "h0 = 0.001 m" in validity.parameter_concerns(Params(h0=1e-3))[0]
+    slow = Params(v0=3.84e-3)  # omega_0 dt = 1.99: stable by the bound, 8.4 MN RMS force
+    assert "omega_0 dt = 1.99" in validity.parameter_concerns(slow)[0]
+    assert validity.parameter_concerns(Params(v0=0.016)) == []  # omega_0 dt = 0.48: a 0.95 % shift
+    lost = type("R", (), {"params": Params(), "n_real": 2, "steps": 1000, "contact_lost_steps": 21})()
+    assert "contact was lost (F = 0) on 21 of 2000 steps" in validity.result_concerns(lost)[0]
+    lost.contact_lost_steps = 20
+    assert validity.result_concerns(lost) == []
+
+
+def test_forced_physics_runs_and_says_so(quick_plots, tmp_path, capsys):
+    code, _, err = _main(capsys, "run", *TINY, "--set", "h0=1e-5", "--force-physics", "--realizations", 1,
+                         "--out", tmp_path / "r")
+    assert code == 0 and err and all(line.startswith("mdroll: warning: h0 = 1e-05 m") for line in err)
+    warnings = json.loads((tmp_path / "r" / "summary.json").read_text())["physics_warnings"]
+    assert warnings and warnings[0].startswith("h0 = 1e-05 m")
+
+
+def test_closed_pipe_ends_quietly(monkeypatch, capsys):
+    class ClosedPipe:
+        def write(self, text):
+            raise BrokenPipeError(32, "Broken pipe")
+
+        def flush(self):
+            raise BrokenPipeError(32, "Broken pipe")
+
+    monkeypatch.setattr(sys, "stdout", ClosedPipe())
+    assert cli_main(["params"]) == 141
+    assert "Traceback" not in capsys.readouterr().err
