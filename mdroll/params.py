@@ -16,6 +16,8 @@ from . import physics
 
 #: The most springs a line may hold: one array dimension of Warp (32-bit).
 MAX_POINTS = 2**31 - 1
+#: The smallest RMS roughness (m): h0^2 scales every spectrum and must not underflow.
+MIN_H0 = 1e-100
 #: Modes per piece of the band summed for lambda_A (32 MiB of float64).
 BAND_PIECE = 2**22
 
@@ -103,6 +105,11 @@ class Params:
                 f"L = {self.L!r} m is not allowed with dx = {self.dx!r} m: the line would hold {self.L / self.dx:.3g} "
                 f"springs, more than the {MAX_POINTS} of one array (Warp's 32-bit dimensions); reduce L or increase dx"
             )
+        if self.h0 < MIN_H0:
+            raise ParameterError(
+                f"h0 = {self.h0!r} m is not allowed: it must be at least {MIN_H0:g} m (below, its square, the "
+                "scale of the spectra, is lost to float64 underflow)"
+            )
         if self.h0 >= self.R:
             raise ParameterError(
                 f"h0 = {self.h0!r} m is not allowed: the RMS roughness must be far below the wheel radius "
@@ -132,6 +139,10 @@ class Params:
         if self.q_min >= self.q_max:
             raise ParameterError(
                 f"q_min = {self.q_min!r} rad/m is not allowed: it must be below q_max = {self.q_max:.6g} rad/m"
+            )
+        if not math.isfinite(self.q_max * self.v0):
+            raise ParameterError(
+                f"v0 = {self.v0!r} m/s is not allowed: the highest frequency q_max v0 overflows float64"
             )
         if not isinstance(self.n_real, (int, np.integer)) or isinstance(self.n_real, bool) or self.n_real < 1:
             raise ParameterError(f"n_real = {self.n_real!r} is not allowed: it must be a positive integer")
