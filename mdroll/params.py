@@ -140,10 +140,6 @@ class Params:
             raise ParameterError(
                 f"q_min = {self.q_min!r} rad/m is not allowed: it must be below q_max = {self.q_max:.6g} rad/m"
             )
-        if not math.isfinite(self.q_max * self.v0):
-            raise ParameterError(
-                f"v0 = {self.v0!r} m/s is not allowed: the highest frequency q_max v0 overflows float64"
-            )
         if not isinstance(self.n_real, (int, np.integer)) or isinstance(self.n_real, bool) or self.n_real < 1:
             raise ParameterError(f"n_real = {self.n_real!r} is not allowed: it must be a positive integer")
         if self.n_points < 2:
