@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import physics
 from ..devices import is_cuda, to_warp, warp
 from ..params import MAX_POINTS, ParameterError, Params
 from .algorithms import BOUNDS, PREFIX, TREE, algorithm_entry, indenter_curvature
@@ -55,7 +56,7 @@ def wheel_margin(params: Params, d: float, h_max: float) -> int:
     and at least ``floor(a(d)/dx) + 1`` so that the edge formula's end cells lie on the line.
     """
     curvature = indenter_curvature(params)
-    edge_cells = int(math.floor(math.sqrt(d * params.R) / params.dx)) + 1
+    edge_cells = int(math.floor(physics.contact_radius(d, params.R) / params.dx)) + 1
     return max(reach(d + h_max, curvature), edge_cells)
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 
+from .. import physics
 from ..devices import is_cuda, warp
 from ..params import Params
 
@@ -79,7 +80,7 @@ def sweep_command(prepared, params: Params, d: float, device: str, out=None, off
     p = prepared
     rows = p.lines.shape[0]
     force = out if out is not None else wp.empty((rows, p.steps), dtype=wp.float64, device=device)
-    curvature = params.dx**2 / params.R
+    curvature = physics.indenter_profile(params.dx, params.R)  # eq 7 at one spacing
     bounds = p.bounds.numpy()
     h_low, h_high = float(bounds[:, 0].min()), float(bounds[:, 1].max())
     outer = reach_strict(d + h_high, curvature)
