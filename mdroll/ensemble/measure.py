@@ -12,13 +12,16 @@ import math
 
 import numpy as np
 
+from .. import physics
+
 #: Standard errors added to a model allowance before a measured value is said to disagree.
 Z_SIGMA = 3.0
 
 
 def period_bands(q: np.ndarray, q_lo: float, q_hi: float, a: float) -> list[np.ndarray]:
-    """Masks of consecutive whole modulation periods [q_lo + j pi/a, q_lo + (j+1) pi/a) up to q_hi."""
-    period = math.pi / a
+    """Masks of consecutive whole modulation periods [q_lo + j pi/a, q_lo + (j+1) pi/a) up to q_hi
+    (the period of eq 26, :func:`mdroll.physics.modulation_period`)."""
+    period = physics.modulation_period(a)
     count = int(math.floor((q_hi - q_lo) / period * (1 + 1e-12)))
     return [(q >= q_lo + j * period) & (q < q_lo + (j + 1) * period) for j in range(count)]
 
