@@ -19,7 +19,7 @@ import tempfile
 import tomllib
 from pathlib import Path
 
-from .ensemble.algorithms import ALGORITHMS, DEFAULT_ALGORITHM
+from .ensemble.algorithms import ALGORITHMS, DEFAULT_ALGORITHM, REGISTRY
 from .params import Params
 
 PARAM_NAMES = tuple(f.name for f in dataclasses.fields(Params))
@@ -113,7 +113,8 @@ def _parser() -> argparse.ArgumentParser:
     p_run.add_argument("--first", type=int, help="index of the first realization (default 0): split an ensemble "
                        "across processes, then `mdroll merge`")
     p_run.add_argument("--seed", type=int, help="master seed (default 0)")
-    p_run.add_argument("--algorithm", choices=ALGORITHMS, help=f"default {DEFAULT_ALGORITHM}")
+    p_run.add_argument("--algorithm", choices=ALGORITHMS, help=f"default {DEFAULT_ALGORITHM}; " + "; ".join(
+        f"{entry.name}: {entry.description}, {entry.complexity.text}" for entry in REGISTRY.values()))
     p_run.add_argument("--mode", choices=["decoupled", "coupled"], help="default decoupled")
     p_run.add_argument("--boundary", choices=["open", "periodic"], help="default open")
     p_run.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")

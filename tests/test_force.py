@@ -326,3 +326,35 @@ def test_host_reach_is_the_kernels(kernel_device):
                                                wp.array(curvature, dtype=wp.float64, device=kernel_device), out],
               device=kernel_device)
     assert out.numpy().tolist() == [reach(a, b) for a, b in zip(level.tolist(), curvature.tolist())]
+
+
+def test_coupled_kernels_and_kernel_structs_are_float64():
+    """The force path is float64 throughout: the coupled kernels (made per algorithm in
+    kernels/dynamics.py) and the structs the kernels read take no float32 or float16, scalar or
+    in an array; the check catches a float32 field (a struct defined here, never launched)."""
+    import inspect
+
+    import warp as wp
+
+    from mdroll.kernels import common, direct, edge, tree
+
+    def low_precision(kind) -> bool:
+        scalar = getattr(kind, "dtype", kind)
+        return getattr(scalar, "_wp_scalar_type_", scalar) in (wp.float32, wp.float16) or kind is float
+
+    def bad_fields(struct) -> list[str]:
+        return [name for name, var in struct.vars.items() if low_precision(var.type)]
+
+    for kernel in (direct.coupled_direct, edge.coupled_edge, tree.coupled_tree):
+        for name, parameter in inspect.signature(kernel.func).parameters.items():
+            kind = parameter.annotation
+            assert not (bad_fields(kind) if hasattr(kind, "vars") else low_precision(kind)), name
+    for struct in (common.Contact, direct.DirectLines, edge.EdgeGeometry, tree.TreeLines):
+        assert bad_fields(struct) == [], struct.key
+
+    @wp.struct
+    class Mixed:
+        x: wp.float64
+        y: wp.array(dtype=wp.float32)
+
+    assert bad_fields(Mixed) == ["y"]

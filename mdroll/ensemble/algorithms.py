@@ -61,7 +61,7 @@ LIFTS = "lift table"  # the indenter's profile d - curvature m^2 over the window
 class Complexity:
     """Expected growth of the force time with n (``time ~ n^p``): under ``refinement`` (fixed L,
     dx halving; None where no single exponent fits, with the reason in ``note``) and over
-    rolling ``distance`` (fixed dx)."""
+    rolling ``distance`` (fixed dx); ``text`` says it in words (the CLI's help)."""
 
     refinement: float | None
     distance: float = 1.0
@@ -81,7 +81,35 @@ class BenchVariant:
 
 @dataclass(frozen=True)
 class Algorithm:
-    """One force algorithm (see the module docstring for each field's role)."""
+    """One force algorithm.
+
+    Attributes
+    ----------
+    name, description : str
+        Its name (``algorithm=`` everywhere) and what it computes, in a phrase.
+    exact : bool
+        Whether it gives the direct sum (eq 10-12) to rounding; else an approximation.
+    needs : frozenset
+        What :func:`~mdroll.ensemble.prepare.prepare_lines` prepares for it (:data:`BOUNDS`,
+        :data:`PREFIX`, :data:`TREE`) and whether its launch reads a :data:`LIFTS` table.
+    force_launch : callable
+        ``(prepared, params, d, offset, force, lifts, device) -> wp.Launch``: the recorded
+        launch that writes ``force[r, s] = F - offset`` (N) at indentation d (m).
+    coupled : callable or None
+        ``(prepared) -> (kernel, lines)``: its eq 13 kernel
+        (:func:`~mdroll.kernels.dynamics.coupled_dynamics`) and that kernel's ``lines``
+        argument; None: no coupled step (``mode="coupled"`` refuses the algorithm).
+    complexity : Complexity
+        Expected scaling, for ``mdroll bench``'s fits and the CLI's help.
+    max_window : int or None
+        Contact windows (springs a side) up to which its float64 closed forms are exact; a
+        wider one is refused before launch. None: no such limit.
+    bench_variants : tuple of BenchVariant
+        Settings the scaling study times beside the default.
+    bench_point_limit : dict
+        The scaling study's largest problem (realizations x points) per device kind ("cpu",
+        "cuda") in a full study; no entry: no limit.
+    """
 
     name: str
     description: str
@@ -92,8 +120,6 @@ class Algorithm:
     complexity: Complexity
     max_window: int | None = None
     bench_variants: tuple = ()
-    #: the scaling study's largest problem (realizations x points) per device kind ("cpu",
-    #: "cuda") in a full study; no entry: no limit
     bench_point_limit: dict = field(default_factory=dict)
 
 
@@ -188,7 +214,7 @@ REGISTRY: dict[str, Algorithm] = {
             coupled=_tree_coupled,
             max_window=MAX_CLOSED_FORM_OFFSET,
             complexity=Complexity(
-                refinement=None, text="O(n log n) under refinement",
+                refinement=None, text="O(n log n) a line under refinement",
                 note="hybrid: bands up to band_limit springs summed directly; n log n: tree-descent"),
             # every band traversed (band_limit 0): the O(n log n) traversal of physics.md
             # section 4 at every size, next to the default, which sums the narrowed bands
@@ -204,7 +230,7 @@ REGISTRY: dict[str, Algorithm] = {
             force_launch=_direct_launch,
             coupled=_direct_coupled,
             max_window=MAX_CLOSED_FORM_OFFSET,
-            complexity=Complexity(refinement=2.0, text="O(n^2) under refinement"),
+            complexity=Complexity(refinement=2.0, text="O(n^2) a line under refinement"),
             # one CPU core takes ~1 us a step; on the GPU 2^26 points at 2^20 a line is ~1 s
             bench_point_limit={"cpu": 2**20, "cuda": 2**26},
         ),
@@ -215,7 +241,7 @@ REGISTRY: dict[str, Algorithm] = {
             needs=frozenset({PREFIX}),
             force_launch=_edge_launch,
             coupled=_edge_coupled,
-            complexity=Complexity(refinement=1.0, text="O(n)"),
+            complexity=Complexity(refinement=1.0, text="O(n) a line"),
             bench_point_limit={"cpu": 2**23},
         ),
     )

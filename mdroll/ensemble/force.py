@@ -15,7 +15,7 @@ from ..devices import device_of, resolve_device, to_warp, warp
 from ..params import ParameterError, Params
 from .algorithms import DEFAULT_ALGORITHM, LIFTS, algorithm_entry, indenter_curvature
 from .arguments import check_choice, check_params, check_positive, check_real, check_tree_options
-from .prepare import BOUNDARIES, DEFAULT_BAND_LIMIT, DEFAULT_LEAF_SIZE, PreparedLines, prepare_lines, reach, step_range
+from .prepare import BOUNDARIES, DEFAULT_BAND_LIMIT, DEFAULT_LEAF_SIZE, PreparedLines, prepare_lines, reach
 
 
 def lift_table(params: Params, d: float, h_top: float, device: str):

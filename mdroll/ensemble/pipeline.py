@@ -16,14 +16,14 @@ import numpy as np
 from ..devices import is_cuda, queue_on, resolve_device, to_warp, warp
 from ..kernels.spectra import NOT_FINITE
 from ..params import ParameterError, Params
+from .algorithms import DEFAULT_ALGORITHM, algorithm_entry, coupled_entry
+from .arguments import check_choice, check_flag, check_integer, check_params
 from .batching import check_run_fits, default_batch
 from .checkpoint import RunTotals
 from .coupled import coupled_series
-from .algorithms import DEFAULT_ALGORITHM, algorithm_entry, coupled_entry
-from .arguments import check_choice, check_flag, check_integer, check_params
 from .force import launch_force
-from .prepare import BOUNDARIES, DEFAULT_LEAF_SIZE, prepare_lines
 from .lines import check_seed, realization_indices, rough_lines
+from .prepare import BOUNDARIES, DEFAULT_LEAF_SIZE, prepare_lines
 from .result import EnsembleResult
 from .spectra import psd_moments_of_batch, series_sums, to_host
 
