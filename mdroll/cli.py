@@ -273,7 +273,6 @@ def cmd_run(args) -> int:
     from .ensemble.checkpoint import CHECKPOINT, read_checkpoint
     from .ensemble.batching import check_run_fits, realization_bytes
     from .ensemble.pipeline import run_ensemble
-    from .ensemble.validity import parameter_concerns
 
     if args.workers is not None or args.scheduler is not None:
         return _run_distributed(args)
@@ -295,9 +294,7 @@ def cmd_run(args) -> int:
         params = build_params(args)
         settings = {k: v if getattr(args, k) is None else getattr(args, k) for k, v in RUN_DEFAULTS.items()}
         realizations = _realizations(args, params)
-    concerns = parameter_concerns(params)
-    if concerns and not args.force_physics:
-        raise UsageError("; ".join(concerns) + " (--force-physics runs it anyway)")
+    _refuse_outside_validity(args, params)
     memory = None
     if args.memory_limit is not None:
         memory = _positive_gib(args.memory_limit)
@@ -352,12 +349,23 @@ def _run_distributed(args) -> int:
         indices = _realizations(args, params)
         if not isinstance(indices, range):
             raise UsageError(f"--realizations {args.realizations}: the number of realizations must be at least 1")
+        _refuse_outside_validity(args, params)
         spec = EnsembleSpec(params, first=indices.start, realizations=len(indices), **settings)
-        out = _output_dir(args)
+        out = _output_dir(args, clear=RUN_OUTPUTS)
     with cluster_runner(args, checkpoint=out / "units") as (runner, device):
         (result,) = runner.run_specs([spec], device=device, progress=not args.no_progress)
     write_outputs(result, out)
     return 0
+
+
+def _refuse_outside_validity(args, params) -> None:
+    """Refuse parameters outside the model's validity (:mod:`mdroll.ensemble.validity`) unless
+    ``--force-physics``: the summary's ``physics_warnings`` then say why its numbers are suspect."""
+    from .ensemble.validity import parameter_concerns
+
+    concerns = parameter_concerns(params)
+    if concerns and not args.force_physics:
+        raise UsageError("; ".join(concerns) + " (--force-physics runs it anyway)")
 
 
 def _realizations(args, params):
@@ -470,6 +478,13 @@ def main(argv=None) -> int:
         return 2
     except ValueError as exc:  # ParameterError, DeviceError: bad values, named in the message
         print(f"mdroll: error: {exc}", file=sys.stderr)
+        return 2
+    except FloatingPointError as exc:  # NonFiniteError: a force or spectrum not finite, realization and stage named
+        print(f"mdroll: error: {exc}; the parameters give non-finite numbers", file=sys.stderr)
+        return 2
+    except MemoryError:
+        print("mdroll: error: out of memory; lower --batch or --memory-limit, or L (more than the free memory was "
+              "taken while the run went on)", file=sys.stderr)
         return 2
     except BrokenPipeError:  # the reader left (mdroll params | head -2): nothing more to say
         with contextlib.suppress(OSError, ValueError, AttributeError):

@@ -560,3 +560,15 @@ def test_closed_pipe_ends_quietly(monkeypatch, capsys):
     monkeypatch.setattr(sys, "stdout", ClosedPipe())
     assert cli_main(["params"]) == 141
     assert "Traceback" not in capsys.readouterr().err
+
+
+def test_a_non_finite_force_ends_the_cli_in_one_line(tmp_path, monkeypatch, capsys):
+    real = pipeline.rough_lines
+
+    def poisoned(params, seed, idx, device):
+        lines = np.array(real(params, seed, idx, device=device))
+        lines[0, 10] = np.nan
+        return lines
+
+    monkeypatch.setattr(pipeline, "rough_lines", poisoned)
+    _refused(capsys, "force is not finite in realization 0", "run", *TINY, "--realizations", 1, "--out", tmp_path / "r")
