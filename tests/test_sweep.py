@@ -11,10 +11,10 @@ from mdroll.ensemble.sweep import sweep_command
 SMALL = Params(L=0.03, dx=20e-6)  # 1500 springs, a/dx = 253
 
 
-def _sweep(lines, p, boundary, d, device, tile_steps=None, block_dim=None, h_max=None):
+def _sweep(lines, p, boundary, d, device, tile_steps=None, block_dim=None, loads=None, h_max=None):
     prepared = prepare_lines(lines, p, "direct", boundary, d, device, h_max=h_max)  # the row bounds
     prepared.prefix, prepared.prefix_owner = _prefix_sums(prepared.lines, device)
-    command, force = sweep_command(prepared, p, d, device, tile_steps=tile_steps, block_dim=block_dim)
+    command, force = sweep_command(prepared, p, d, device, tile_steps=tile_steps, block_dim=block_dim, loads=loads)
     command.launch()
     return to_numpy(force)
 
@@ -121,13 +121,14 @@ def test_same_force_whatever_the_tile_the_block_or_the_batch(device):
     reference = _sweep(lines, p, "open", d, device)
     direct = to_numpy(contact_force(lines, p, "direct", "open", d=d, device=device))
     assert np.max(np.abs(reference - direct)) <= 1e-12 * p.F_N
-    variants = [(16, 1), (64, 8)] if device == "cpu" else [(256, 64), (512, 256), (2048, 128)]
+    # (tile steps, lanes, loads a lane)
+    variants = [(16, 1, 1), (64, 8, 2)] if device == "cpu" else [(256, 64, 1), (512, 256, 4), (2048, 128, 2)]
     enabled = wp.config.enable_cpu_blocks
     wp.config.enable_cpu_blocks = True
     try:
-        for tile_steps, block_dim in variants:
-            force = _sweep(lines, p, "open", d, device, tile_steps, block_dim)
-            assert np.max(np.abs(force - reference)) <= 1e-12 * p.F_N, (tile_steps, block_dim)
+        for variant in variants:
+            force = _sweep(lines, p, "open", d, device, *variant)
+            assert np.max(np.abs(force - reference)) <= 1e-12 * p.F_N, variant
     finally:
         wp.config.enable_cpu_blocks = enabled
     # one by one, with the batch's wheel positions (h_max): each line's own bounds and scale

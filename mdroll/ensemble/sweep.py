@@ -12,10 +12,13 @@ from .. import physics
 from ..devices import is_cuda, warp
 from ..params import Params
 
-#: CUDA: lanes a block and the smallest tile (steps a block). A lane scans ``tile / lanes``
-#: consecutive bins; the tile's bins take 32 bytes of shared memory a step.
+#: CUDA: lanes a block, the smallest tile (steps a block) and the springs a lane loads at once
+#: (kernels/sweep.py). A lane scans ``tile / lanes`` consecutive bins; a tile takes 40 bytes of
+#: shared memory a step (its bins and forces), 48 KiB at 1024 steps: 4 blocks of 128 lanes a
+#: streaming multiprocessor, as many as 118 registers a lane allow.
 CUDA_BLOCK_DIM = 128
 CUDA_MIN_TILE = 1024
+CUDA_LOADS = 2
 #: CPU: Warp runs a block as one lane; a longer tile reads the anchors' bands less often.
 CPU_MIN_TILE = 4096
 #: A tile spans at least this many times the widest band (springs whose contact at the tile's
@@ -66,13 +69,14 @@ def fixed_scale(h_abs: float, tile_steps: int, outer: int) -> float:
 
 
 def sweep_command(prepared, params: Params, d: float, device: str, out=None, offset: float = 0.0,
-                  tile_steps: int | None = None, block_dim: int | None = None):
+                  tile_steps: int | None = None, block_dim: int | None = None, loads: int | None = None):
     """The sweep's force launch, recorded (``wp.Launch``; run with ``.launch()``), and the
     (R, steps) array it writes: ``F - offset`` (N) at indentation d (m) for every step.
 
     ``prepared`` needs ``lines``, ``prefix`` and ``bounds`` (see
     :func:`mdroll.ensemble.force.prepare_lines`); ``tile_steps`` and ``block_dim`` override the
-    defaults of :func:`sweep_tile` (the force is the same to rounding whatever they are).
+    defaults of :func:`sweep_tile`, ``loads`` CUDA_LOADS (1 on the CPU): the force is the same
+    to rounding whatever they are.
     """
     from ..kernels.sweep import sweep_kernel
 
@@ -89,6 +93,8 @@ def sweep_command(prepared, params: Params, d: float, device: str, out=None, off
     scale = fixed_scale(max(abs(h_low), abs(h_high)), tile, outer)
     inputs = [p.lines, p.prefix, p.bounds, p.n_work, p.first, p.steps, d, curvature, scale, params.k_spring, offset,
               force]
-    command = wp.launch_tiled(sweep_kernel(tile, lanes), dim=(rows, -(-p.steps // tile)), inputs=inputs,
+    if loads is None:
+        loads = CUDA_LOADS if is_cuda(device) else 1
+    command = wp.launch_tiled(sweep_kernel(tile, lanes, loads), dim=(rows, -(-p.steps // tile)), inputs=inputs,
                               block_dim=lanes, device=device, record_cmd=True)
     return command, force

@@ -26,10 +26,13 @@ Design (per block: one row and a tile of T consecutive steps, ``c0 = first + til
    ``(c0, c0 + T)`` adds ``+-(1, h, m, m^2)`` to the bin of that step (springs
    ``c0 + 1 + core .. c0 + T - 1 + outer`` enter, ``c0 - outer .. c0 + T - 2 - core`` leave:
    ``T + outer - core`` each), by a block-level scatter into shared memory
-   (``wp.tile_scatter_add``).
+   (``wp.tile_scatter_add``: four int64 atomics, then a barrier). A lane loads ``loads``
+   entering and as many leaving springs before it scatters them, so that on CUDA several
+   loads are in flight between two barriers.
 3. *Scan*: each lane sums its ``T / block_dim`` consecutive bins; a Hillis-Steele scan over the
-   lanes' totals (ping-pong shared tiles) gives each lane the totals before its bins; the lane
-   then runs through its steps and writes ``F - offset``.
+   lanes' totals (ping-pong shared tiles, log2(block_dim) barriers) gives each lane the totals
+   before its bins; the lane runs through its steps, puts ``F - offset`` in a shared tile, and
+   the block writes that out in order, adjacent lanes to adjacent steps (coalesced).
 
 Every total is an exact int64 integer: h enters as the fixed-point ``round(h 2^K)`` with
 ``2^K = fixed_scale`` chosen by the launcher so that no partial sum of a tile passes 2^62, so
@@ -49,9 +52,13 @@ as an exit ``2 M ~ 2000`` springs later, is in a tile of the same row that runs 
 same time, an L2 hit) and each force written once (8 B): 16 B a step, 5.0 GB, 1.27 ms at the
 H200's 3.96 TB/s, the same bytes as the edge kernel (eq 49: one prefix read and one write a
 step), which takes 2.55 ms. The arithmetic is ~2.2 reaches (~12 float64 operations each) and
-~2.2 x 4 int64 shared-memory atomics a step, ~0.3 ms of the H200's float64 rate: the kernel
-is bound by memory latency and synchronisation, not by either floor. The build adds the row
-bounds (one pass over the lines, 0.65 ms) to the edge's prefix sums.
+~2.2 x 4 int64 shared-memory atomics a step (~0.3 ms of the H200's float64 rate and ~0.4 ms of
+its shared-memory atomics). At T = 1024 and 128 lanes a tile passes ~30 barriers (9 scatter
+rounds, 1 anchor, 7 scan, 8 stores of the forces and the zeroing): what separates the kernel
+from the floor is latency between barriers, which the ``loads`` batching and 4 resident blocks
+a multiprocessor (48 KiB of shared memory each) are there to hide. The build adds the row bounds
+(one pass over the lines, ~0.65 ms at 3.96 TB/s) to the prefix sums that the edge kernel reads
+too.
 
 On the CPU Warp runs a block as one lane (block_dim 1): the same code is then a sequential
 sweep over the tile, one spring read twice and one bin per step.
@@ -62,6 +69,9 @@ import functools
 import warp as wp
 
 from .common import reach_strict, sum_of_squares
+
+#: A height (m) no indenter reaches: a spring beyond the line, with reach -1.
+NO_LEVEL = wp.constant(wp.float64(-1.0e300))
 
 #: The four exact totals of a bin or a contact set: (count, sum round(h 2^K), sum m, sum m^2).
 totals4 = wp.types.vector(length=4, dtype=wp.int64)
@@ -95,15 +105,21 @@ def force_of_totals(
 
 
 @functools.cache
-def sweep_kernel(tile_steps: int, block_dim: int):
+def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
     """The sweep kernel for tiles of ``tile_steps`` steps and blocks of ``block_dim`` lanes
     (``tile_steps`` a multiple of ``block_dim``, ``block_dim`` a power of two; block_dim 1 on
-    the CPU). Launched by ``wp.launch_tiled`` over ``(R, ceil(steps / tile_steps))``."""
-    if block_dim < 1 or block_dim & (block_dim - 1) or tile_steps % block_dim:
-        raise ValueError(f"tile_steps = {tile_steps} must be a multiple of block_dim = {block_dim}, a power of two")
+    the CPU), each lane loading ``loads`` entering and as many leaving springs before it
+    scatters them (on CUDA their loads are then in flight together; ptxas for sm_90 at
+    T = 1024, 128 lanes: 80 registers for 1, 118 for 2, 142 for 4). Launched by
+    ``wp.launch_tiled`` over ``(R, ceil(steps / tile_steps))``."""
+    if block_dim < 1 or block_dim & (block_dim - 1) or tile_steps % block_dim or loads < 1:
+        raise ValueError(f"tile_steps = {tile_steps} must be a multiple of block_dim = {block_dim}, a power of two; "
+                         f"loads = {loads} >= 1")
     T = tile_steps
     BD = block_dim
     S = T // BD  # bins a lane scans
+    LOADS = loads
+    heights_batch = wp.types.vector(length=LOADS, dtype=wp.float64)
     SCAN_ROUNDS = BD.bit_length() - 1
 
     @wp.kernel(module="unique")
@@ -150,34 +166,40 @@ def sweep_kernel(tile_steps: int, block_dim: int):
                 value = spring_totals(h, m, fixed_scale)
             wp.tile_scatter_add(bins, 0, value, touches)
 
-        # 2. entries (bin i - M - c0) and exits (bin i + M + 1 - c0) inside the tile
+        # 2. entries (bin i - M - c0) and exits (bin i + M + 1 - c0) inside the tile: the
+        # lane loads its LOADS entering and LOADS leaving candidates first, so that their
+        # loads are in flight together, then scatters them
         spread = wp.max(T - 1 + outer - near, 0)
-        for start in range(0, spread, BD):
-            j = start + lane
-            i = c0 + 1 + near + j
-            value = totals4()
-            at = int(0)
-            enters = False
-            if j < spread and i < n:
-                h = lines[r, i]
-                reach = reach_strict(h + d, curvature)
-                at = i - reach - c0
+        for start in range(0, spread, BD * LOADS):
+            entering = heights_batch()
+            leaving = heights_batch()
+            for u in range(LOADS):
+                j = start + u * BD + lane
+                i = c0 + 1 + near + j
+                entering[u] = NO_LEVEL
+                if j < spread and i < n:
+                    entering[u] = lines[r, i]
+                i = c0 - outer + j
+                leaving[u] = NO_LEVEL
+                if j < spread and i >= 0 and i < n:
+                    leaving[u] = lines[r, i]
+            for u in range(LOADS):
+                m = 1 + near + start + u * BD + lane  # the entering spring's offset from c0
+                reach = reach_strict(entering[u] + d, curvature)
+                at = m - reach
                 enters = reach >= 0 and at >= 1 and at < T
-                value = spring_totals(h, i - c0, fixed_scale)
-            wp.tile_scatter_add(bins, at, value, enters)
-        for start in range(0, spread, BD):
-            j = start + lane
-            i = c0 - outer + j
-            value = totals4()
-            at = int(0)
-            leaves = False
-            if j < spread and i >= 0 and i < n:
-                h = lines[r, i]
-                reach = reach_strict(h + d, curvature)
-                at = i + reach + 1 - c0
+                value = totals4()
+                if enters:
+                    value = spring_totals(entering[u], m, fixed_scale)
+                wp.tile_scatter_add(bins, at, value, enters)
+                m = m - 1 - near - outer  # the leaving spring's
+                reach = reach_strict(leaving[u] + d, curvature)
+                at = m + reach + 1
                 leaves = reach >= 0 and at >= 1 and at < T
-                value = -spring_totals(h, i - c0, fixed_scale)
-            wp.tile_scatter_add(bins, at, value, leaves)
+                value = totals4()
+                if leaves:
+                    value = -spring_totals(leaving[u], m, fixed_scale)
+                wp.tile_scatter_add(bins, at, value, leaves)
 
         # 3. scan: this lane's bins lane*S .. lane*S+S-1, after the totals of the lanes before
         own = totals4()
@@ -207,11 +229,15 @@ def sweep_kernel(tile_steps: int, block_dim: int):
                                         wp.int64(sum_of_squares(-core, core)))
             core_heights = prefix[r, c0 + core + 1] - prefix[r, c0 - core]
         inverse_scale = wp.float64(1.0) / fixed_scale
+        forces = wp.tile_zeros(shape=T, dtype=wp.float64, storage="shared")
         for k in range(S):
             t = lane * S + k
             running = running + bins[t]
-            s = s0 + t
-            if s < steps:
-                force[r, s] = force_of_totals(running, core_heights, t, d, curvature, inverse_scale, k_spring, offset)
+            forces[t] = force_of_totals(running, core_heights, t, d, curvature, inverse_scale, k_spring, offset)
+        # written back in order, adjacent lanes to adjacent steps (coalesced)
+        for k in range(S):
+            t = k * BD + lane
+            if s0 + t < steps:
+                force[r, s0 + t] = forces[t]
 
     return contact_force_sweep
