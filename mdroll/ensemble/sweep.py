@@ -28,8 +28,6 @@ TILE_PER_BAND = 4
 #: The largest tile: its bins take 32 x 4096 = 128 KiB, half the CPU arena of Warp 1.19, and of the
 #: 227 KiB of shared memory of an H100/H200 block.
 MAX_TILE = {"cpu": 4096, "cuda": 4096}
-#: Partial sums of the fixed-point heights stay below 2^62 (int64 holds 2^63).
-FIXED_POINT_BITS = 62
 
 
 def reach_strict(level: float, curvature: float) -> int:
@@ -57,23 +55,12 @@ def sweep_tile(band: int, device: str, tile_steps: int | None = None, block_dim:
     return tile_steps, block_dim
 
 
-def fixed_scale(h_abs: float, tile_steps: int, outer: int) -> float:
-    """``2^K`` (1/m), the largest power of two for which ``round(h 2^K)`` summed over every event
-    of a tile stays below ``2^62``: a tile adds at most ``2 T + 4 (outer + 1)`` heights (entries,
-    exits and the anchor's bands), each at most ``h_abs`` (m) in size."""
-    events = 2 * tile_steps + 4 * (max(outer, 0) + 1)
-    if h_abs <= 0.0:
-        return 2.0**1000  # a flat line: every height rounds to 0 anyway
-    exponent = math.floor(FIXED_POINT_BITS - math.log2(h_abs * events))
-    return math.ldexp(1.0, min(exponent, 1000))
-
-
 def sweep_command(prepared, params: Params, d: float, device: str, out=None, offset: float = 0.0,
                   tile_steps: int | None = None, block_dim: int | None = None, loads: int | None = None):
     """The sweep's force launch, recorded (``wp.Launch``; run with ``.launch()``), and the
     (R, steps) array it writes: ``F - offset`` (N) at indentation d (m) for every step.
 
-    ``prepared`` needs ``lines``, ``prefix`` and ``bounds`` (see
+    ``prepared`` needs ``lines``, ``prefix``, ``bounds`` and ``h_top`` (see
     :func:`mdroll.ensemble.force.prepare_lines`); ``tile_steps`` and ``block_dim`` override the
     defaults of :func:`sweep_tile`, ``loads`` CUDA_LOADS (1 on the CPU): the force is the same
     to rounding whatever they are.
@@ -85,14 +72,11 @@ def sweep_command(prepared, params: Params, d: float, device: str, out=None, off
     rows = p.lines.shape[0]
     force = out if out is not None else wp.empty((rows, p.steps), dtype=wp.float64, device=device)
     curvature = physics.indenter_profile(params.dx, params.R)  # eq 7 at one spacing
-    bounds = p.bounds.numpy()
-    h_low, h_high = float(bounds[:, 0].min()), float(bounds[:, 1].max())
-    outer = reach_strict(d + h_high, curvature)
-    band = outer - max(reach_strict(d + h_low, curvature), 0)
+    # the widest band, for the tile size alone (the kernel reads each row's own bounds): from the
+    # batch's largest height and, lines being near symmetric, its negative as the lowest
+    band = reach_strict(d + p.h_top, curvature) - max(reach_strict(d - p.h_top, curvature), 0)
     tile, lanes = sweep_tile(band, device, tile_steps, block_dim)
-    scale = fixed_scale(max(abs(h_low), abs(h_high)), tile, outer)
-    inputs = [p.lines, p.prefix, p.bounds, p.n_work, p.first, p.steps, d, curvature, scale, params.k_spring, offset,
-              force]
+    inputs = [p.lines, p.prefix, p.bounds, p.n_work, p.first, p.steps, d, curvature, params.k_spring, offset, force]
     if loads is None:
         loads = CUDA_LOADS if is_cuda(device) else 1
     command = wp.launch_tiled(sweep_kernel(tile, lanes, loads), dim=(rows, -(-p.steps // tile)), inputs=inputs,

@@ -34,12 +34,13 @@ Design (per block: one row and a tile of T consecutive steps, ``c0 = first + til
    before its bins; the lane runs through its steps, puts ``F - offset`` in a shared tile, and
    the block writes that out in order, adjacent lanes to adjacent steps (coalesced).
 
-Every total is an exact int64 integer: h enters as the fixed-point ``round(h 2^K)`` with
-``2^K = fixed_scale`` chosen by the launcher so that no partial sum of a tile passes 2^62, so
-the result does not depend on the order of the atomic adds or of the scan (deterministic,
-bitwise the same for any block_dim), and the float64 part is the core's prefix-sum difference
-alone: no rounding accumulates along the tile. The fixed-point rounding is at most
-``2^-(K+1)`` m a spring (K ~ 66 at the defaults: ~1e-20 m against the ~7e-14 m of 1e-12 F_N).
+Every total is an exact int64 integer: h enters as the fixed point ``round(h scale)``, the row's
+``scale = 2^62 / (max |h| (2 T + 4 outer + 4))`` (:func:`fixed_scale`) keeping every partial sum
+of a tile (at most that many heights) below 2^62. So the result does not depend on the order of
+the atomic adds or of the scan (deterministic, the same for any block_dim), and the float64
+part is the core's prefix-sum difference alone: no rounding accumulates along the tile. The
+fixed-point rounding is at most ``1 / (2 scale)`` a spring (~1e-21 m at the defaults, against
+the ~7e-14 m of 1e-12 F_N), and a line's scale depends on its own heights alone.
 
 Work per step: ``2 (T + outer - core) / T`` spring reads, each with one reach (a float32
 square root as first guess, made exact by float64 tests) and at most one scatter, plus
@@ -73,15 +74,29 @@ from .common import reach_strict, sum_of_squares
 #: A height (m) no indenter reaches: a spring beyond the line, with reach -1.
 NO_LEVEL = wp.constant(wp.float64(-1.0e300))
 
-#: The four exact totals of a bin or a contact set: (count, sum round(h 2^K), sum m, sum m^2).
+#: The four exact totals of a bin or a contact set: (count, sum round(h scale), sum m, sum m^2).
 totals4 = wp.types.vector(length=4, dtype=wp.int64)
 
 
 @wp.func
-def spring_totals(h: wp.float64, m: int, fixed_scale: wp.float64) -> totals4:
-    """``(1, round(h 2^K), m, m^2)`` of one spring at offset m from the tile's origin."""
+def spring_totals(h: wp.float64, m: int, scale: wp.float64) -> totals4:
+    """``(1, round(h scale), m, m^2)`` of one spring at offset m from the tile's origin."""
     offset = wp.int64(m)
-    return totals4(wp.int64(1), wp.int64(wp.round(h * fixed_scale)), offset, offset * offset)
+    return totals4(wp.int64(1), wp.int64(wp.round(h * scale)), offset, offset * offset)
+
+
+#: int64 partial sums of the fixed-point heights stay below this (int64 holds 2^63).
+FIXED_RANGE = wp.constant(wp.float64(2.0**62))
+
+
+@wp.func
+def fixed_scale(bounds: wp.vec2d, tile_steps: int, outer: int) -> wp.float64:
+    """The fixed-point scale (1/m) of a row of bounds ``(min h, max h)`` (m): a tile sums at most
+    ``2 T + 4 (outer + 1)`` heights (entries, exits, the anchor's bands), each at most max |h|."""
+    largest = wp.max(wp.abs(bounds[0]), wp.abs(bounds[1]))
+    if largest == wp.float64(0.0):
+        return wp.float64(1.0)  # a flat line: every height is 0
+    return FIXED_RANGE / (largest * wp.float64(2 * tile_steps + 4 * (wp.max(outer, 0) + 1)))
 
 
 @wp.func
@@ -97,7 +112,7 @@ def force_of_totals(
 ) -> wp.float64:
     """``F - offset`` (N) for the wheel t steps past the tile's origin: eq 10-12 summed over the
     contact set, ``k (sum h + N d - curvature (P2 - 2 t P1 + t^2 N))``, with ``core_heights`` the
-    core's sum of h (m) and the rest of sum h in ``totals[1]`` (units of 2^-K m)."""
+    core's sum of h (m) and the rest of sum h in ``totals[1]`` (units of 1 / scale m)."""
     shift = wp.int64(t)
     squares = totals[3] - wp.int64(2) * shift * totals[2] + shift * shift * totals[0]
     heights = core_heights + wp.float64(totals[1]) * inverse_scale
@@ -132,7 +147,6 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
         steps: int,
         d: wp.float64,
         curvature: wp.float64,
-        fixed_scale: wp.float64,
         k_spring: wp.float64,
         offset: wp.float64,
         force: wp.array2d(dtype=wp.float64),
@@ -146,6 +160,7 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
         core = reach_strict(d + box[0], curvature)  # every spring reaches this far (-1: none surely)
         outer = reach_strict(d + box[1], curvature)  # no spring reaches farther
         near = wp.max(core, 0)
+        scale = fixed_scale(box, T, outer)
         bins = wp.tile_zeros(shape=T, dtype=totals4, storage="shared")
 
         # 1. the band springs in contact at c0 go to bin 0: right c0+core+1 .. c0+outer, left
@@ -163,7 +178,7 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
                 h = lines[r, i]
                 m = i - c0
                 touches = wp.abs(m) <= reach_strict(h + d, curvature)
-                value = spring_totals(h, m, fixed_scale)
+                value = spring_totals(h, m, scale)
             wp.tile_scatter_add(bins, 0, value, touches)
 
         # 2. entries (bin i - M - c0) and exits (bin i + M + 1 - c0) inside the tile: the
@@ -190,7 +205,7 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
                 enters = reach >= 0 and at >= 1 and at < T
                 value = totals4()
                 if enters:
-                    value = spring_totals(entering[u], m, fixed_scale)
+                    value = spring_totals(entering[u], m, scale)
                 wp.tile_scatter_add(bins, at, value, enters)
                 m = m - 1 - near - outer  # the leaving spring's
                 reach = reach_strict(leaving[u] + d, curvature)
@@ -198,7 +213,7 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
                 leaves = reach >= 0 and at >= 1 and at < T
                 value = totals4()
                 if leaves:
-                    value = -spring_totals(leaving[u], m, fixed_scale)
+                    value = -spring_totals(leaving[u], m, scale)
                 wp.tile_scatter_add(bins, at, value, leaves)
 
         # 3. scan: this lane's bins lane*S .. lane*S+S-1, after the totals of the lanes before
@@ -228,7 +243,7 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
             running = running + totals4(wp.int64(2 * core + 1), wp.int64(0), wp.int64(0),
                                         wp.int64(sum_of_squares(-core, core)))
             core_heights = prefix[r, c0 + core + 1] - prefix[r, c0 - core]
-        inverse_scale = wp.float64(1.0) / fixed_scale
+        inverse_scale = wp.float64(1.0) / scale
         forces = wp.tile_zeros(shape=T, dtype=wp.float64, storage="shared")
         for k in range(S):
             t = lane * S + k
