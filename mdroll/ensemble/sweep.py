@@ -13,11 +13,11 @@ from ..devices import is_cuda, warp
 from ..params import Params
 
 #: CUDA: lanes a block, the smallest tile (steps a block) and the springs a lane loads at once
-#: (kernels/sweep.py). A lane scans ``tile / lanes`` consecutive bins; a tile takes 40 bytes of
-#: shared memory a step (its bins and forces), 48 KiB at 1024 steps: 4 blocks of 128 lanes a
-#: streaming multiprocessor, as many as 118 registers a lane allow.
+#: (kernels/sweep.py). A lane scans ``tile / lanes`` consecutive bins; a tile takes 44 bytes of
+#: shared memory a step (its bins and forces), ~36 KiB at 512 steps: 6 blocks of 128 lanes a
+#: streaming multiprocessor.
 CUDA_BLOCK_DIM = 128
-CUDA_MIN_TILE = 1024
+CUDA_MIN_TILE = 512
 CUDA_LOADS = 2
 #: CPU: Warp runs a block as one lane; a longer tile reads the anchors' bands less often.
 CPU_MIN_TILE = 4096
@@ -25,8 +25,8 @@ CPU_MIN_TILE = 4096
 #: start is uncertain, one side): the band is read 2 + 2 x T / band times a tile, so the work a
 #: step stays O(1) as the band grows under refinement.
 TILE_PER_BAND = 4
-#: The largest tile: its bins take 32 x 4096 = 128 KiB, half the CPU arena of Warp 1.19, and of the
-#: 227 KiB of shared memory of an H100/H200 block.
+#: The largest tile: its bins and forces take 44 x (4096 + lanes) bytes, ~180 KiB, within the
+#: 256 KiB CPU arena of Warp 1.19 and the 227 KiB of shared memory of an H100/H200 block.
 MAX_TILE = {"cpu": 4096, "cuda": 4096}
 
 

@@ -74,29 +74,67 @@ from .common import reach_strict, sum_of_squares
 #: A height (m) no indenter reaches: a spring beyond the line, with reach -1.
 NO_LEVEL = wp.constant(wp.float64(-1.0e300))
 
-#: The four exact totals of a bin or a contact set: (count, sum round(h scale), sum m, sum m^2).
+#: The four exact totals of a contact set or a change of it: (count, sum round(h scale),
+#: sum m, sum m^2), m the offset from the tile's first step.
 totals4 = wp.types.vector(length=4, dtype=wp.int64)
 
+#: A bin's int32 sums, nine (an odd number of words: lanes that scatter into consecutive bins
+#: meet no shared-memory bank twice): the entries' and the exits' counts and lags, then the
+#: squared lags (signed: entries minus exits) in two 16-bit limbs, and the heights' fixed point
+#: (entries minus exits) in 16, 16 and the remaining bits.
+bin9 = wp.types.vector(length=9, dtype=wp.int32)
+
+#: Fixed-point heights stay below 2^46 (the top limb then below 2^14).
+FIXED_RANGE = wp.constant(wp.float64(2.0**46))
+LIMB = wp.constant(wp.int64(0xFFFF))
+
 
 @wp.func
-def spring_totals(h: wp.float64, m: int, scale: wp.float64) -> totals4:
-    """``(1, round(h scale), m, m^2)`` of one spring at offset m from the tile's origin."""
-    offset = wp.int64(m)
-    return totals4(wp.int64(1), wp.int64(wp.round(h * scale)), offset, offset * offset)
-
-
-#: int64 partial sums of the fixed-point heights stay below this (int64 holds 2^63).
-FIXED_RANGE = wp.constant(wp.float64(2.0**62))
-
-
-@wp.func
-def fixed_scale(bounds: wp.vec2d, tile_steps: int, outer: int) -> wp.float64:
-    """The fixed-point scale (1/m) of a row of bounds ``(min h, max h)`` (m): a tile sums at most
-    ``2 T + 4 (outer + 1)`` heights (entries, exits, the anchor's bands), each at most max |h|."""
+def fixed_scale(bounds: wp.vec2d) -> wp.float64:
+    """The fixed-point scale (1/m) of a row of bounds ``(min h, max h)`` (m): ``2^46 / max |h|``."""
     largest = wp.max(wp.abs(bounds[0]), wp.abs(bounds[1]))
     if largest == wp.float64(0.0):
         return wp.float64(1.0)  # a flat line: every height is 0
-    return FIXED_RANGE / (largest * wp.float64(2 * tile_steps + 4 * (wp.max(outer, 0) + 1)))
+    return FIXED_RANGE / largest
+
+
+@wp.func
+def event(h: wp.float64, lag: int, scale: wp.float64, leaving: int, sign: int) -> bin9:
+    """``sign`` times the bin record of one spring of lag ``lag`` (its reach less the tile's
+    certain core, 0 <= lag <= band) entering (``leaving`` 0) or leaving (1)."""
+    fixed = wp.int64(wp.round(h * scale))
+    square = lag * lag
+    record = bin9()
+    record[leaving] = sign
+    record[2 + leaving] = sign * lag
+    flip = sign * (1 - 2 * leaving)  # exits enter the signed sums negated
+    record[4] = flip * (square & 0xFFFF)
+    record[5] = flip * (square >> 16)
+    record[6] = flip * wp.int32(fixed & LIMB)
+    record[7] = flip * wp.int32((fixed >> wp.int64(16)) & LIMB)
+    record[8] = flip * wp.int32(fixed >> wp.int64(32))
+    return record
+
+
+@wp.func
+def bin_change(record: bin9, t: int, near: int) -> totals4:
+    """The change of the totals at step t of the tile from the springs of one bin: entries sit
+    at ``m = t + near + lag``, exits at ``m = t - near - 1 - lag`` (eq 10-12, exact integers)."""
+    enter = wp.int64(t + near)
+    leave = wp.int64(t - near - 1)
+    entering = wp.int64(record[0])
+    leaving = wp.int64(record[1])
+    lag_in = wp.int64(record[2])
+    lag_out = wp.int64(record[3])
+    squares = wp.int64(record[4]) + (wp.int64(record[5]) << wp.int64(16))
+    heights = wp.int64(record[6]) + (wp.int64(record[7]) << wp.int64(16)) + (wp.int64(record[8]) << wp.int64(32))
+    two = wp.int64(2)
+    return totals4(
+        entering - leaving,
+        heights,
+        entering * enter + lag_in - leaving * leave + lag_out,
+        entering * enter * enter + two * enter * lag_in - leaving * leave * leave + two * leave * lag_out + squares,
+    )
 
 
 @wp.func
@@ -124,8 +162,7 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
     """The sweep kernel for tiles of ``tile_steps`` steps and blocks of ``block_dim`` lanes
     (``tile_steps`` a multiple of ``block_dim``, ``block_dim`` a power of two; block_dim 1 on
     the CPU), each lane loading ``loads`` entering and as many leaving springs before it
-    scatters them (on CUDA their loads are then in flight together; ptxas for sm_90 at
-    T = 1024, 128 lanes: 80 registers for 1, 118 for 2, 142 for 4). Launched by
+    scatters them (on CUDA their loads are then in flight together). Launched by
     ``wp.launch_tiled`` over ``(R, ceil(steps / tile_steps))``."""
     if block_dim < 1 or block_dim & (block_dim - 1) or tile_steps % block_dim or loads < 1:
         raise ValueError(f"tile_steps = {tile_steps} must be a multiple of block_dim = {block_dim}, a power of two; "
@@ -133,9 +170,12 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
     T = tile_steps
     BD = block_dim
     S = T // BD  # bins a lane scans
+    # bin t lives at t + t // S: one word of padding after each lane's bins, so that the lanes'
+    # strided reads of their own bins fall in different banks
+    PADDED = T + BD
     LOADS = loads
-    heights_batch = wp.types.vector(length=LOADS, dtype=wp.float64)
     SCAN_ROUNDS = BD.bit_length() - 1
+    heights_batch = wp.types.vector(length=LOADS, dtype=wp.float64)
 
     @wp.kernel(module="unique")
     def contact_force_sweep(
@@ -160,30 +200,35 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
         core = reach_strict(d + box[0], curvature)  # every spring reaches this far (-1: none surely)
         outer = reach_strict(d + box[1], curvature)  # no spring reaches farther
         near = wp.max(core, 0)
-        scale = fixed_scale(box, T, outer)
-        bins = wp.tile_zeros(shape=T, dtype=totals4, storage="shared")
+        scale = fixed_scale(box)
+        bins = wp.tile_zeros(shape=PADDED, dtype=bin9, storage="shared")
 
-        # 1. the band springs in contact at c0 go to bin 0: right c0+core+1 .. c0+outer, left
-        # c0-outer .. c0-near-1 (the core's closed form is added per step below)
+        # 1. the band springs in contact at c0 go to bin 0: right c0+core+1 .. c0+outer as
+        # entries (m = near + lag), left c0-outer .. c0-near-1 as exits (m = -near-1-lag)
+        # negated, so that they add (the core's closed form is added below)
         right = wp.max(outer - core, 0)
         band = right + wp.max(outer - near, 0)
         for start in range(0, band, BD):
             j = start + lane
-            i = c0 + core + 1 + j
+            m = core + 1 + j
+            side = int(0)  # 0: right, an entry; 1: left, an exit
+            lag = m - near
             if j >= right:
-                i = c0 - outer + j - right
-            value = totals4()
+                m = -outer + j - right
+                side = 1
+                lag = -near - 1 - m
+            record = bin9()
             touches = False
-            if j < band and i >= 0 and i < n:
-                h = lines[r, i]
-                m = i - c0
+            if j < band and c0 + m >= 0 and c0 + m < n:
+                h = lines[r, c0 + m]
                 touches = wp.abs(m) <= reach_strict(h + d, curvature)
-                value = spring_totals(h, m, scale)
-            wp.tile_scatter_add(bins, 0, value, touches)
+                if touches:
+                    record = event(h, lag, scale, side, 1 - 2 * side)
+            wp.tile_scatter_add(bins, 0, record, touches)
 
-        # 2. entries (bin i - M - c0) and exits (bin i + M + 1 - c0) inside the tile: the
-        # lane loads its LOADS entering and LOADS leaving candidates first, so that their
-        # loads are in flight together, then scatters them
+        # 2. entries (at step i - M) and exits (at i + M + 1) inside the tile: the lane loads
+        # its LOADS entering and LOADS leaving candidates first, so that their loads are in
+        # flight together, then scatters them
         spread = wp.max(T - 1 + outer - near, 0)
         for start in range(0, spread, BD * LOADS):
             entering = heights_batch()
@@ -203,23 +248,24 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
                 reach = reach_strict(entering[u] + d, curvature)
                 at = m - reach
                 enters = reach >= 0 and at >= 1 and at < T
-                value = totals4()
+                record = bin9()
                 if enters:
-                    value = spring_totals(entering[u], m, scale)
-                wp.tile_scatter_add(bins, at, value, enters)
+                    record = event(entering[u], reach - near, scale, 0, 1)
+                wp.tile_scatter_add(bins, at + at // S, record, enters)
                 m = m - 1 - near - outer  # the leaving spring's
                 reach = reach_strict(leaving[u] + d, curvature)
                 at = m + reach + 1
                 leaves = reach >= 0 and at >= 1 and at < T
-                value = totals4()
+                record = bin9()
                 if leaves:
-                    value = -spring_totals(leaving[u], m, scale)
-                wp.tile_scatter_add(bins, at, value, leaves)
+                    record = event(leaving[u], reach - near, scale, 1, 1)
+                wp.tile_scatter_add(bins, at + at // S, record, leaves)
 
         # 3. scan: this lane's bins lane*S .. lane*S+S-1, after the totals of the lanes before
+        first_bin = lane * S
         own = totals4()
         for k in range(S):
-            own = own + bins[lane * S + k]
+            own = own + bin_change(bins[first_bin + lane + k], first_bin + k, near)
         inclusive = own
         ping = wp.tile_zeros(shape=BD, dtype=totals4, storage="shared")
         pong = wp.tile_zeros(shape=BD, dtype=totals4, storage="shared")
@@ -244,15 +290,15 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
                                         wp.int64(sum_of_squares(-core, core)))
             core_heights = prefix[r, c0 + core + 1] - prefix[r, c0 - core]
         inverse_scale = wp.float64(1.0) / scale
-        forces = wp.tile_zeros(shape=T, dtype=wp.float64, storage="shared")
+        forces = wp.tile_zeros(shape=PADDED, dtype=wp.float64, storage="shared")
         for k in range(S):
-            t = lane * S + k
-            running = running + bins[t]
-            forces[t] = force_of_totals(running, core_heights, t, d, curvature, inverse_scale, k_spring, offset)
+            t = first_bin + k
+            running = running + bin_change(bins[t + lane], t, near)
+            forces[t + lane] = force_of_totals(running, core_heights, t, d, curvature, inverse_scale, k_spring, offset)
         # written back in order, adjacent lanes to adjacent steps (coalesced)
         for k in range(S):
             t = k * BD + lane
             if s0 + t < steps:
-                force[r, s0 + t] = forces[t]
+                force[r, s0 + t] = forces[t + t // S]
 
     return contact_force_sweep
