@@ -5,6 +5,7 @@ import pytest
 from reference import contact_reach, direct_force, sweep_force, to_numpy
 
 from mdroll import Params, contact_force, rough_lines, step_range
+from mdroll.devices import to_warp
 from mdroll.ensemble.prepare import _prefix_sums, prepare_lines
 from mdroll.ensemble.sweep import sweep_command
 
@@ -12,6 +13,7 @@ SMALL = Params(L=0.03, dx=20e-6)  # 1500 springs, a/dx = 253
 
 
 def _sweep(lines, p, boundary, d, device, tile_steps=None, block_dim=None, loads=None, h_max=None):
+    lines = to_warp(np.asarray(lines) if isinstance(lines, np.ndarray) else lines, device)  # on the device
     prepared = prepare_lines(lines, p, "direct", boundary, d, device, h_max=h_max)  # the row bounds
     prepared.prefix, prepared.prefix_owner = _prefix_sums(prepared.lines, device)
     command, force = sweep_command(prepared, p, d, device, tile_steps=tile_steps, block_dim=block_dim, loads=loads)

@@ -23,43 +23,51 @@ Design (per block: one row and a tile of T consecutive steps, ``c0 = first + til
    (``core < |m| <= outer``, ``outer`` the M of the row's highest spring) that touches adds
    itself to bin 0.
 2. *Events in the tile*: each spring whose entry ``i - M_i`` or exit ``i + M_i + 1`` falls in
-   ``(c0, c0 + T)`` adds ``+-(1, h, m, m^2)`` to the bin of that step (springs
-   ``c0 + 1 + core .. c0 + T - 1 + outer`` enter, ``c0 - outer .. c0 + T - 2 - core`` leave:
-   ``T + outer - core`` each), by a block-level scatter into shared memory
-   (``wp.tile_scatter_add``: four int64 atomics, then a barrier). A lane loads ``loads``
-   entering and as many leaving springs before it scatters them, so that on CUDA several
-   loads are in flight between two barriers.
-3. *Scan*: each lane sums its ``T / block_dim`` consecutive bins; a Hillis-Steele scan over the
-   lanes' totals (ping-pong shared tiles, log2(block_dim) barriers) gives each lane the totals
-   before its bins; the lane runs through its steps, puts ``F - offset`` in a shared tile, and
-   the block writes that out in order, adjacent lanes to adjacent steps (coalesced).
+   ``(c0, c0 + T)`` adds itself to the bin of that step (springs ``c0 + 1 + core ..
+   c0 + T - 1 + outer`` enter, ``c0 - outer .. c0 + T - 2 - core`` leave: ``T + outer - core``
+   each), by a block-level scatter into shared memory (``wp.tile_scatter_add``, then a
+   barrier). A lane loads ``loads`` entering and as many leaving springs before it scatters
+   them, so that on CUDA several loads are in flight between two barriers.
+3. *Scan*: each lane turns its ``T / block_dim`` consecutive bins into changes of the four
+   totals and sums them; a Hillis-Steele scan over the lanes' sums (ping-pong shared tiles,
+   log2(block_dim) barriers) gives each lane the totals before its bins; the lane runs through
+   its steps, puts ``F - offset`` in a shared tile, and the block writes that out in order,
+   adjacent lanes to adjacent steps (coalesced).
 
-Every total is an exact int64 integer: h enters as the fixed point ``round(h scale)``, the row's
-``scale = 2^62 / (max |h| (2 T + 4 outer + 4))`` (:func:`fixed_scale`) keeping every partial sum
-of a tile (at most that many heights) below 2^62. So the result does not depend on the order of
-the atomic adds or of the scan (deterministic, the same for any block_dim), and the float64
-part is the core's prefix-sum difference alone: no rounding accumulates along the tile. The
-fixed-point rounding is at most ``1 / (2 scale)`` a spring (~1e-21 m at the defaults, against
-the ~7e-14 m of 1e-12 F_N), and a line's scale depends on its own heights alone.
+A bin holds nine int32 sums, so that every scatter is a native shared-memory atomic add (the
+sm_90 SASS of int64 or float64 atomic adds on shared memory is a compare-and-swap loop,
+``ATOMS.CAST.SPIN.64``; the first version, on int64 totals, took 30 ms on an H200 at thesis
+scale): the entries' and exits' counts and lags (a spring's reach less the tile's certain core,
+``0 <= lag <= band = outer - max(core, 0)``), the squared lags in two 16-bit limbs, and the
+heights as the fixed point ``round(h scale)``, ``scale = 2^46 / max |h|`` of the row, in three
+limbs (entries minus exits). Springs that share a bin have distinct lags, so no sum can pass
+2^31 while ``band <= MAX_BAND`` (16383; the launcher checks). Nine words a bin is an odd
+stride, and each lane's bins are followed by one bin of padding: neither the lanes' scatter
+into consecutive bins nor their strided reads of their own bins meet a bank twice. The scan
+rebuilds the changes in int64, exactly, so the result does not depend on the order of the
+atomic adds or of the scan (deterministic, the same for any block_dim); the one float64 total
+is the core's prefix-sum difference, and no rounding accumulates along the tile. The fixed
+point rounds each height by at most ``max |h| 2^-47`` (~2e-20 m at the defaults, against the
+~7e-14 m of 1e-12 F_N).
 
 Work per step: ``2 (T + outer - core) / T`` spring reads, each with one reach (a float32
-square root as first guess, made exact by float64 tests) and at most one scatter, plus
-``2 (outer - core) / T`` for the anchor and ``1 / T`` of the closed form; O(1) per step and per
-spring for ``T >> outer - core`` (the launcher grows T with the band), so O(n) per line at any
-resolution.
+square root as first guess, made exact by float64 tests) and at most one scatter of nine
+atomics, plus ``2 (outer - core) / T`` for the anchor and ``1 / T`` of the closed form; O(1)
+per step and per spring for ``T >> outer - core`` (the launcher grows T with the band), so
+O(n) per line at any resolution.
 
 Floor (300 x 2^20 steps, float64): each spring is read from memory once (8 B; its second read,
 as an exit ``2 M ~ 2000`` springs later, is in a tile of the same row that runs at about the
 same time, an L2 hit) and each force written once (8 B): 16 B a step, 5.0 GB, 1.27 ms at the
 H200's 3.96 TB/s, the same bytes as the edge kernel (eq 49: one prefix read and one write a
 step), which takes 2.55 ms. The arithmetic is ~2.2 reaches (~12 float64 operations each) and
-~2.2 x 4 int64 shared-memory atomics a step (~0.3 ms of the H200's float64 rate and ~0.4 ms of
-its shared-memory atomics). At T = 1024 and 128 lanes a tile passes ~30 barriers (9 scatter
-rounds, 1 anchor, 7 scan, 8 stores of the forces and the zeroing): what separates the kernel
-from the floor is latency between barriers, which the ``loads`` batching and 4 resident blocks
-a multiprocessor (48 KiB of shared memory each) are there to hide. The build adds the row bounds
-(one pass over the lines, ~0.65 ms at 3.96 TB/s) to the prefix sums that the edge kernel reads
-too.
+~2.2 x 9 int32 shared-memory atomics a step (~0.3 ms of the H200's float64 rate, ~0.6 ms of its
+shared-memory wavefronts at one a bank-conflict-free atomic). At T = 512 and 128 lanes a tile
+passes ~25 barriers (5 scatter rounds of two, 1 anchor, 7 scan, 4 stores of the forces and the
+zeroing): the ``loads`` batching and 6 resident blocks a multiprocessor (36 KiB of shared
+memory and 72 registers a lane, ptxas for sm_90) are there to hide the latency between them.
+The build adds the row bounds (one pass over the lines, ~0.65 ms at 3.96 TB/s) to the prefix
+sums that the edge kernel reads too.
 
 On the CPU Warp runs a block as one lane (block_dim 1): the same code is then a sequential
 sweep over the tile, one spring read twice and one bin per step.
@@ -84,6 +92,11 @@ totals4 = wp.types.vector(length=4, dtype=wp.int64)
 #: (entries minus exits) in 16, 16 and the remaining bits.
 bin9 = wp.types.vector(length=9, dtype=wp.int32)
 
+#: The widest band (springs a side whose contact at a tile's first step is uncertain) for which
+#: no int32 sum of a bin can overflow: a bin's springs have distinct lags <= band, and bin 0
+#: takes up to 2 (band + 1) of them, each limb below 2^16.
+MAX_BAND = 16383
+
 #: Fixed-point heights stay below 2^46 (the top limb then below 2^14).
 FIXED_RANGE = wp.constant(wp.float64(2.0**46))
 LIMB = wp.constant(wp.int64(0xFFFF))
@@ -104,16 +117,12 @@ def event(h: wp.float64, lag: int, scale: wp.float64, leaving: int, sign: int) -
     certain core, 0 <= lag <= band) entering (``leaving`` 0) or leaving (1)."""
     fixed = wp.int64(wp.round(h * scale))
     square = lag * lag
-    record = bin9()
-    record[leaving] = sign
-    record[2 + leaving] = sign * lag
-    flip = sign * (1 - 2 * leaving)  # exits enter the signed sums negated
-    record[4] = flip * (square & 0xFFFF)
-    record[5] = flip * (square >> 16)
-    record[6] = flip * wp.int32(fixed & LIMB)
-    record[7] = flip * wp.int32((fixed >> wp.int64(16)) & LIMB)
-    record[8] = flip * wp.int32(fixed >> wp.int64(32))
-    return record
+    entering = sign * (1 - leaving)
+    exiting = sign * leaving
+    flip = entering - exiting  # exits enter the signed sums negated
+    return bin9(entering, exiting, entering * lag, exiting * lag, flip * (square & 0xFFFF), flip * (square >> 16),
+                flip * wp.int32(fixed & LIMB), flip * wp.int32((fixed >> wp.int64(16)) & LIMB),
+                flip * wp.int32(fixed >> wp.int64(32)))
 
 
 @wp.func
@@ -162,7 +171,8 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
     """The sweep kernel for tiles of ``tile_steps`` steps and blocks of ``block_dim`` lanes
     (``tile_steps`` a multiple of ``block_dim``, ``block_dim`` a power of two; block_dim 1 on
     the CPU), each lane loading ``loads`` entering and as many leaving springs before it
-    scatters them (on CUDA their loads are then in flight together). Launched by
+    scatters them (on CUDA their loads are then in flight together). Exact for rows whose
+    band is at most MAX_BAND springs (module docstring). Launched by
     ``wp.launch_tiled`` over ``(R, ceil(steps / tile_steps))``."""
     if block_dim < 1 or block_dim & (block_dim - 1) or tile_steps % block_dim or loads < 1:
         raise ValueError(f"tile_steps = {tile_steps} must be a multiple of block_dim = {block_dim}, a power of two; "
