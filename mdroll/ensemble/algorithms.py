@@ -31,6 +31,7 @@ How to add an algorithm
    :class:`~mdroll.ensemble.prepare.PreparedLines` fields it needs and records the launch that
    writes ``force`` (``lifts``: the lift table and its origin when it needs one, else None);
    ``needs``, ``coupled`` (or None), ``exact``, ``max_window`` and ``complexity``.
+
 The CLI's ``--algorithm`` choices, :data:`mdroll.ALGORITHMS`, the pipeline, the coupled
 dynamics and the scaling study pick it up from there; the tests that compare every exact
 algorithm with the direct sum (tests/test_force.py) run it too.
