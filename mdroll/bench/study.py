@@ -16,7 +16,8 @@ reported apart):
 - ``thesis`` (``--full`` on CUDA): 300 x 2^20 force-only and warm end-to-end times per algorithm.
 
 The study lives in the package (not under ``benchmarks/``) so the installed ``mdroll bench``
-has it; ``benchmarks/`` holds the pytest-benchmark suite, the notes and the recorded results.
+has it; ``benchmarks/`` holds the pytest-benchmark suite, scripts and the recorded results.
+Its table and plot: :mod:`mdroll.bench.report`.
 """
 
 from __future__ import annotations
@@ -28,31 +29,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .devices import resolve_device, synchronize, to_warp, usable_devices, warp
-from .ensemble.algorithms import ALGORITHMS, REGISTRY
-from .ensemble.force import force_command
-from .ensemble.lines import rough_lines
-from .ensemble.pipeline import H_BOUND_SIGMAS, MODES, run_ensemble
-from .ensemble.prepare import DEFAULT_BAND_LIMIT, DEFAULT_LEAF_SIZE, prepare_lines
-from .params import Params
-
-
-def expected_exponent(section: str, name: str) -> float | None:
-    """The exponent p of time ~ n^p that the registry expects of an algorithm, or of one of its
-    bench variants, in ``section`` ("refinement" or "distance"); None where no single value fits."""
-    for entry in REGISTRY.values():
-        if entry.name == name:
-            return entry.complexity.refinement if section == "refinement" else entry.complexity.distance
-        for variant in entry.bench_variants:
-            if variant.name == name:
-                return variant.refinement if section == "refinement" else entry.complexity.distance
-    return None
-
-
-def refinement_note(name: str) -> str:
-    """Why an algorithm has no expected refinement exponent (its registry entry's note)."""
-    entry = REGISTRY.get(name)
-    return entry.complexity.note if entry is not None else ""
+from ..devices import resolve_device, synchronize, to_warp, usable_devices, warp
+from ..ensemble.algorithms import ALGORITHMS, REGISTRY
+from ..ensemble.force import force_command
+from ..ensemble.lines import rough_lines
+from ..ensemble.pipeline import H_BOUND_SIGMAS, MODES, run_ensemble
+from ..ensemble.prepare import DEFAULT_BAND_LIMIT, DEFAULT_LEAF_SIZE, prepare_lines
+from ..params import Params
 
 
 @dataclass(frozen=True)
@@ -194,7 +177,7 @@ def memory_per_realization(params: Params, algorithm: str, device: str) -> int:
 def run_study(size: str = "quick", devices=None, progress=print) -> dict:
     """Run the study of ``size`` ("quick" or "full") on ``devices`` (default: every available
     one; CUDA only with CuPy) and return the JSON-ready record."""
-    from .provenance import environment
+    from ..provenance import environment
 
     study = STUDIES[size]
     full = size == "full"
@@ -288,59 +271,3 @@ def _fit(record, section, device, algorithm, progress):
     record["fits"].setdefault(section, {}).setdefault(device, {})[algorithm] = {"exponent": slope, "stderr": err}
     progress(f"{device} {section:<10} {algorithm:<6} time ~ n^{slope:.3f} +- {err:.3f} "
              f"({len(points)} sizes, {points[0]['n']}..{points[-1]['n']})")
-
-
-def format_table(record: dict) -> str:
-    """The fitted exponents, the CPU-vs-CUDA ratios and the stage breakdowns as text."""
-    lines = ["scaling exponents (time ~ n^p, least squares on log-log, +- standard error)"]
-    for section, per_device in record["fits"].items():
-        for device, per_alg in per_device.items():
-            for alg, fit in per_alg.items():
-                expected = expected_exponent(section, alg)
-                note = f"expected ~{expected:g}" if expected is not None else refinement_note(alg)
-                lines.append(f"  {section:<10} {device:<7} {alg:<6} p = {fit['exponent']:.3f} +- {fit['stderr']:.3f}"
-                             f"   ({note})")
-    for row in record["cpu_vs_cuda"]:
-        speed = ", ".join(f"{k[8:]} {v:.0f}x" for k, v in row.items() if k.startswith("speedup_"))
-        lines.append(f"  cpu vs cuda {row['algorithm']:<6} n = {row['n']}, R = {row['realizations']}: {speed}")
-    for device, st in record["stages"].items():
-        parts = ", ".join(f"{k} {v:.3f}" for k, v in st["timings_s"].items())
-        lines.append(f"  stages {device} (L = {st['params']['L']} m, R = {st['params']['n_real']}): {parts}; total {st['total_s']:.3f} s")
-    for device, mem in record["memory_bytes_per_realization"].items():
-        lines.append(f"  memory {device} per realization at the defaults: "
-                     + ", ".join(f"{k} {v / 2**20:.1f} MiB" for k, v in mem.items()))
-    return "\n".join(lines)
-
-
-def plot_study(record: dict, path) -> None:
-    """Log-log time vs n with the fitted lines: one colour per algorithm, solid CUDA, dashed CPU."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    sections = [s for s in ("refinement", "distance") if record[s]]
-    fig, axes = plt.subplots(1, len(sections), figsize=(6 * len(sections), 4.5), layout="constrained", squeeze=False)
-    names = [n for entry in REGISTRY.values() for n in (entry.name, *(v.name for v in entry.bench_variants))]
-    colours = {name: f"C{i}" for i, name in enumerate(names)}
-    for ax, section in zip(axes[0], sections):
-        for device in sorted({r["device"] for r in record[section]}):
-            for alg in colours:
-                pts = [r for r in record[section] if r["device"] == device and r["algorithm"] == alg]
-                if not pts:
-                    continue
-                n = np.array([r["n"] for r in pts], float)
-                t = np.array([r["force_s"] for r in pts])
-                style = "--" if device == "cpu" else "-"
-                ax.loglog(n, t, "o", color=colours[alg], ms=4)
-                fit = record["fits"].get(section, {}).get(device, {}).get(alg)
-                if fit:
-                    c = np.mean(np.log(t) - fit["exponent"] * np.log(n))
-                    ax.loglog(n, np.exp(c) * n ** fit["exponent"], style, color=colours[alg],
-                              label=f"{alg} {device}: n^{fit['exponent']:.2f}")
-        ax.set_xlabel("n (points per line)")
-        ax.set_ylabel("force time (s)")
-        ax.set_title("refinement at fixed L" if section == "refinement" else "rolling distance at fixed dx")
-        ax.legend(fontsize=7)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)

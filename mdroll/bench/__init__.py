@@ -1,0 +1,33 @@
+"""``mdroll bench``: the scaling study of the force algorithms (:mod:`.study`) and its table and
+plot (:mod:`.report`)."""
+
+from .report import expected_exponent, format_table, plot_study, refinement_note
+from .study import (
+    STUDIES,
+    StudySize,
+    compile_time,
+    fit_exponent,
+    force_time,
+    memory_per_realization,
+    point_limit,
+    run_study,
+    thesis_scale,
+    timed,
+)
+
+__all__ = [
+    "STUDIES",
+    "StudySize",
+    "compile_time",
+    "expected_exponent",
+    "fit_exponent",
+    "force_time",
+    "format_table",
+    "memory_per_realization",
+    "plot_study",
+    "point_limit",
+    "refinement_note",
+    "run_study",
+    "thesis_scale",
+    "timed",
+]
