@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ..devices import warp
+from ..kernels.dynamics import COUPLED_LANES
 from ..params import Params
 from .algorithms import contact_constants, coupled_entry
 
@@ -14,8 +15,6 @@ def coupled_series(prepared, params: Params, algorithm: str, device: str, d_star
     the algorithm's registry entry; the wheel starts at indentation ``d_start`` (m, default d0)
     at rest. Contact is lost where F = 0. An algorithm without a coupled step is refused
     (ParameterError)."""
-    from ..kernels.dynamics import COUPLED_LANES
-
     wp = warp()
     kernel, lines = coupled_entry(algorithm).coupled(prepared)
     rows = prepared.lines.shape[0]

@@ -19,7 +19,7 @@ from .prepare import BOUNDARIES, DEFAULT_BAND_LIMIT, DEFAULT_LEAF_SIZE, Prepared
 
 
 def lift_table(params: Params, d: float, h_top: float, device: str):
-    """The indenter profile ``d - curvature m^2`` (m) at offsets ``|m| <= window + 8`` (the window
+    """The indenter profile ``d - curvature m^2`` (m) at offsets ``|m| <= window + BLOCK`` (the window
     of possible contact for heights up to ``h_top``, plus the blocked sums' padding), as a Warp
     array on ``device``, and the index of m = 0: the table the register-blocked kernels read
     instead of recomputing it. Made by a kernel where it is read: an upload from pageable host
