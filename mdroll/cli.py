@@ -1,4 +1,4 @@
-"""Command line: ``mdroll params``, ``run``, ``validate`` and ``bench`` (also ``python -m mdroll ...``).
+"""Command line: ``mdroll params``, ``run``, ``validate``, ``bench`` and ``study`` (also ``python -m mdroll ...``).
 
 Usage errors print one line on stderr, no traceback, and exit with code 2.
 """
@@ -20,7 +20,7 @@ import tomllib
 from pathlib import Path
 
 from .ensemble.algorithms import ALGORITHMS, DEFAULT_ALGORITHM, REGISTRY
-from .params import TEXT_FIELDS, Params
+from .params import Params
 
 PARAM_NAMES = tuple(f.name for f in dataclasses.fields(Params))
 PRESETS = {
@@ -41,8 +41,6 @@ class _Parser(argparse.ArgumentParser):
 def _parse_value(key: str, text: str):
     if key not in PARAM_NAMES:
         raise UsageError(f"unknown parameter {key!r}; valid ones are: {', '.join(PARAM_NAMES)}")
-    if key in TEXT_FIELDS:
-        return text
     try:
         if key == "n_real":
             return int(text)
@@ -146,7 +144,19 @@ def _parser() -> argparse.ArgumentParser:
     size_options(p_bench, quick="small sizes, minutes on a 2-core CPU (default)", full="the GPU machine's study")
     p_bench.add_argument("--device", action="append", help="cpu, cuda or cuda:N (repeatable; default every available one)")
     output(p_bench)
-    roughness_parser(sub)
+
+    p_study = sub.add_parser("study", help="the thesis's parameter studies (Figures 2-20): figures, JSON and a table "
+                             "of claims with verdicts; `study list`, `study all`, `study report DIR`")
+    p_study.add_argument("name", help="a study (see `mdroll study list`), 'list', 'all' or 'report'")
+    p_study.add_argument("folder", nargs="?", help="report only: the folder of study results to assemble")
+    size_options(p_study, quick="small ensembles, under 2 minutes a study on a CPU (default)",
+                 full="the thesis's ensembles: 300 realizations (chapters 4-5), 100 per point (chapter 6); GPU")
+    p_study.add_argument("--test", dest="size", action="store_const", const="test", help="tiny ensembles (the test suite)")
+    p_study.add_argument("--seed", type=int, default=0, help="master seed (default 0)")
+    p_study.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
+    p_study.add_argument("--page", help="report only: the Markdown page to write (default <folder>.md)")
+    cluster_options(p_study)
+    output(p_study)
     return parser
 
 
@@ -258,10 +268,10 @@ def _fmt(value) -> str:
 def cmd_params(args) -> int:
     p = build_params(args)
     units = {"E": "Pa", "nu": "-", "R": "m", "m": "kg", "F_N": "N", "v0": "m/s", "L": "m", "dx": "m", "h0": "m",
-             "H": "-", "q_min": "rad/m", "q_max": "rad/m", "n_real": "-", "q_r": "rad/m"}
+             "H": "-", "q_min": "rad/m", "q_max": "rad/m", "n_real": "-"}
     print("parameters")
     for key, value in p.as_dict().items():
-        print(f"  {key:<10} {_fmt(value):>14}  {units.get(key, '')}")
+        print(f"  {key:<10} {_fmt(value):>14}  {units[key]}")
     print("derived")
     for key, (value, unit, text) in p.derived().items():
         print(f"  {key:<18} {_fmt(value):>14}  {unit:<9} {text}")
@@ -397,14 +407,12 @@ def write_outputs(result, out: Path) -> None:
     from .ensemble.validity import result_concerns
     from .files import atomic_write
     from .plotting import plot_psd
-    from .railway.report import write_band_outputs
 
     result.save(out / "spectra.npz")
     for quantity in ("accel", "force"):
         with atomic_write(out / f"{quantity}_psd.png") as file:
             plot_psd(result, quantity, file)
     summary = result_summary(result)
-    write_band_outputs(result, out, summary)
     summary["physics_warnings"] = result_concerns(result)
     with atomic_write(out / "summary.json", "w") as file:
         json.dump(summary, file, indent=2)
@@ -417,7 +425,7 @@ def write_outputs(result, out: Path) -> None:
     rows += [(f"time {k}", f"{v:.3f}", "s") for k, v in result.timings.items()]
     for name, value, unit in rows:
         print(f"  {name:<20} {value:>14}  {unit}")
-    print(f"wrote {out}/: spectra.npz summary.json accel_psd.png force_psd.png bands.csv bands.png")
+    print(f"wrote {out}/: spectra.npz summary.json accel_psd.png force_psd.png")
     for concern in summary["physics_warnings"]:
         print(f"mdroll: warning: {concern}", file=sys.stderr)
 
@@ -471,40 +479,35 @@ def cmd_bench(args) -> int:
     return 0
 
 
-def roughness_parser(sub) -> None:
-    """``mdroll roughness check | filter | profile``."""
-    p = sub.add_parser("roughness", help="roughness models: physics checks, contact filter vs CNOSSOS-EU, measured "
-                       "profiles (docs/roughness.md)")
-    tasks = p.add_subparsers(dest="task", required=True, parser_class=_Parser)
-    check = tasks.add_parser("check", help="line spectra, dB round trip, measured profile, eq 39 high band, eq 63, "
-                             "coupled vs decoupled, contact filter: roughness.json; exit 1 on a failure")
-    size_options(check, quick="CPU sizes, about a minute (default)", full="thesis-scale ensembles (GPU)")
-    check.add_argument("--seed", type=int, default=0)
-    check.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
-    output(check)
-    filt = tasks.add_parser("filter", help="the MDR contact filter beside CNOSSOS-EU A3: contact_filter.csv and .png")
-    output(filt)
-    prof = tasks.add_parser("profile", help="a measured profile (CSV/NPY: x, h in m; or h with --dx): Welch PSD with "
-                            "its confidence band (profile_psd.csv, usable as roughness_table) and its band levels")
-    prof.add_argument("file")
-    prof.add_argument("--dx", type=float, help="sample spacing (m) of a one-column profile")
-    prof.add_argument("--segment", type=float, help="Welch segment length (m; default an eighth of the profile)")
-    output(prof)
+def cmd_study(args) -> int:
+    from .studies import STUDIES, check_name, run_study
+    from .studies.report import format_table, write_page, write_study
 
-
-def cmd_roughness(args) -> int:
-    from .railway import tasks as cli_tasks
-
-    out = _output_dir(args)
-    if args.task == "check":
-        from .devices import resolve_device
-
-        passed = cli_tasks.check(args.size or "quick", args.seed, resolve_device(args.device), out)
-        return 0 if passed else 1
-    if args.task == "filter":
-        cli_tasks.contact_filter(out)
+    if args.name == "list":
+        for study in STUDIES.values():
+            print(f"{study.name:<16} {study.figures:<10} {study.equations:<22} {study.title}")
         return 0
-    cli_tasks.profile(args.file, args.dx, args.segment, out)
+    if args.name == "report":
+        if not args.folder:
+            raise UsageError("study report needs the folder of study results, e.g. `mdroll study report docs/studies`")
+        if not Path(args.folder).is_dir():
+            raise UsageError(f"study report: {args.folder!r} is not a folder")
+        try:
+            print(f"wrote {write_page(args.folder, args.page)}")
+        except FileNotFoundError as exc:
+            raise UsageError(str(exc)) from None
+        return 0
+    if args.folder:
+        raise UsageError(f"unexpected argument {args.folder!r}: only `study report` takes a folder")
+    names = list(STUDIES) if args.name == "all" else [check_name(args.name).name]
+    out = _output_dir(args)
+    with cluster_runner(args) as (runner, device):
+        for name in names:
+            run = run_study(name, args.size or "quick", device=device, seed=args.seed, progress=not args.no_progress,
+                            cluster=runner)
+            paths = write_study(run, out)
+            print(format_table(run.record))
+            print(f"wrote {paths[0].parent}/: " + " ".join(p.name for p in paths) + "\n", flush=True)
     return 0
 
 
@@ -512,7 +515,7 @@ def main(argv=None) -> int:
     try:
         args = _parser().parse_args(argv)
         code = {"params": cmd_params, "run": cmd_run, "validate": cmd_validate, "bench": cmd_bench,
-                "merge": cmd_merge, "roughness": cmd_roughness}[args.command](args)
+                "merge": cmd_merge, "study": cmd_study}[args.command](args)
         sys.stdout.flush()  # here, so that a closed pipe is met inside the handlers below
         return code
     except UsageError as exc:

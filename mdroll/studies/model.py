@@ -1,0 +1,95 @@
+"""The closed forms the studies compare with, bound to a :class:`mdroll.Params` (the one place the
+studies call :mod:`mdroll.physics`), and the spectral measurements they share."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .. import physics
+from ..ensemble.measure import band_sum
+from ..params import Params
+
+
+def high_band(p: Params, q) -> np.ndarray:
+    """Eq 40: force PSD (N^2 m) of the linear contact at wavenumbers ``q`` (rad/m)."""
+    return physics.force_psd_high_band(q, p.lambda_A, p.H, p.q_min, p.q_max, p.E_star, p.a)
+
+
+def transfer(p: Params, omega) -> np.ndarray:
+    """|A/F|^2 ((m/s^2/N)^2) of the wheel on the linearized contact spring at ``omega`` (rad/s), section 5.1."""
+    return physics.acceleration_transfer(omega, p.k_contact, p.m)
+
+
+def line_psd(p: Params) -> np.ndarray:
+    """C_1D(j dq) (m^3, eq 33) for j = 0..n/2 on the line's grid."""
+    return p.psd(p.dq * np.arange(p.n_points // 2 + 1))
+
+
+def low_band(p: Params, q, psd_of_line: np.ndarray | None = None) -> np.ndarray:
+    """The closed-form low band (physics.md section 7): force PSD (N^2 m) below q_min at grid
+    wavenumbers ``q`` (rad/m) of a periodic run."""
+    psd_of_line = line_psd(p) if psd_of_line is None else psd_of_line
+    return physics.force_psd_low_band(q, psd_of_line, p.dq, p.E_star, p.R, p.a)
+
+
+def plateau_thesis(p: Params) -> float:
+    """Eq 56/58: the thesis's plateau C_F0 (N^2 m, its own normalization)."""
+    return physics.force_psd_plateau_thesis(p.E_star, p.R, p.h0, p.H, p.a, p.q_min)
+
+
+def band_rms_thesis(p: Params, dq: float) -> float:
+    """Eq 60: the thesis's RMS force (N) in a low band of width ``dq`` (rad/m)."""
+    return physics.band_rms_force_thesis(p.E_star, p.R, p.h0, p.H, p.a, p.q_min, dq)
+
+
+def plateau_band(p: Params, q: np.ndarray) -> np.ndarray:
+    """Bins of the low-band plateau fit: ``0 < q <= min(q_min / 2, pi / (2a))``, below q_min
+    (eq 48 is the whole force there) and before the first zero of cos^2(q a)."""
+    return (q > 0) & (q <= min(p.q_min / 2, math.pi / (2 * p.a)))
+
+
+def plateau_level(result) -> tuple[float, float, float]:
+    """The q -> 0 plateau of the force PSD, ``C_F0`` (N^2 m), of a periodic run: the closed-form
+    low band's shape, normalized to 1 at q = 0, fitted by one factor to the ensemble mean over
+    :func:`plateau_band` (``C_F0 = sum C_F / sum shape``). Returns ``(C_F0, its relative standard
+    error, the closed form's own value at q = 0)``. The shape (the cos^2(q a) dip and the
+    self-convolution of C_1D) is the closed form's; the level is measured."""
+    p = result.params
+    if result.boundary != "periodic":
+        raise ValueError("plateau_level needs a periodic run (its bins are the line's own modes)")
+    mask = plateau_band(p, result.q)
+    psd_of_line = line_psd(p)
+    at_zero = float(low_band(p, np.zeros(1), psd_of_line)[0])
+    shape = low_band(p, result.q[mask], psd_of_line) / at_zero
+    total, rel = band_sum(result.force_psd, result.force_psd_stderr, mask)
+    return total / float(shape.sum()), rel, at_zero
+
+
+def transition_wavenumber(q: np.ndarray, psd: np.ndarray, level: float, factor: float = 10.0) -> float:
+    """The first wavenumber (rad/m) at which ``psd`` exceeds ``factor`` times the low-band
+    ``level`` (same units): where the spectrum leaves its non-linear plateau (eq 21)."""
+    above = np.nonzero(psd > factor * level)[0]
+    return float(q[above[0]]) if above.size else math.nan
+
+
+def period_edges(q_lo: float, q_hi: float, a: float) -> list[tuple[float, float]]:
+    """Whole modulation periods ``[j pi/a, (j+1) pi/a)`` (rad/m; eq 26, ``a`` in m) from the first
+    zero of sin^2(q a) at or above ``q_lo`` up to ``q_hi``."""
+    period = math.pi / a
+    first = math.ceil(q_lo / period - 1e-9)
+    last = math.floor(q_hi / period + 1e-9)
+    return [(j * period, (j + 1) * period) for j in range(first, last)]
+
+
+def band_means(q: np.ndarray, psd: np.ndarray, stderr: np.ndarray, edges) -> tuple[np.ndarray, np.ndarray]:
+    """Mean PSD over the bins of each band ``[lo, hi)`` of ``edges`` (a density: comparable
+    between runs of different lengths) and its relative standard error (bins independent)."""
+    means, rels = [], []
+    for lo, hi in edges:
+        mask = (q >= lo) & (q < hi)
+        total, rel = band_sum(psd, stderr, mask)
+        means.append(total / max(1, int(mask.sum())))
+        rels.append(rel)
+    return np.array(means), np.array(rels)
