@@ -20,7 +20,7 @@ import tomllib
 from pathlib import Path
 
 from .ensemble.algorithms import ALGORITHMS, DEFAULT_ALGORITHM, REGISTRY
-from .params import Params
+from .params import TEXT_FIELDS, Params
 
 PARAM_NAMES = tuple(f.name for f in dataclasses.fields(Params))
 PRESETS = {
@@ -41,6 +41,8 @@ class _Parser(argparse.ArgumentParser):
 def _parse_value(key: str, text: str):
     if key not in PARAM_NAMES:
         raise UsageError(f"unknown parameter {key!r}; valid ones are: {', '.join(PARAM_NAMES)}")
+    if key in TEXT_FIELDS:
+        return text
     try:
         if key == "n_real":
             return int(text)
@@ -144,6 +146,7 @@ def _parser() -> argparse.ArgumentParser:
     size_options(p_bench, quick="small sizes, minutes on a 2-core CPU (default)", full="the GPU machine's study")
     p_bench.add_argument("--device", action="append", help="cpu, cuda or cuda:N (repeatable; default every available one)")
     output(p_bench)
+    roughness_parser(sub)
 
     p_study = sub.add_parser("study", help="the thesis's parameter studies (Figures 2-20): figures, JSON and a table "
                              "of claims with verdicts; `study list`, `study all`, `study report DIR`")
@@ -268,10 +271,10 @@ def _fmt(value) -> str:
 def cmd_params(args) -> int:
     p = build_params(args)
     units = {"E": "Pa", "nu": "-", "R": "m", "m": "kg", "F_N": "N", "v0": "m/s", "L": "m", "dx": "m", "h0": "m",
-             "H": "-", "q_min": "rad/m", "q_max": "rad/m", "n_real": "-"}
+             "H": "-", "q_min": "rad/m", "q_max": "rad/m", "n_real": "-", "q_r": "rad/m"}
     print("parameters")
     for key, value in p.as_dict().items():
-        print(f"  {key:<10} {_fmt(value):>14}  {units[key]}")
+        print(f"  {key:<10} {_fmt(value):>14}  {units.get(key, '')}")
     print("derived")
     for key, (value, unit, text) in p.derived().items():
         print(f"  {key:<18} {_fmt(value):>14}  {unit:<9} {text}")
@@ -407,12 +410,14 @@ def write_outputs(result, out: Path) -> None:
     from .ensemble.validity import result_concerns
     from .files import atomic_write
     from .plotting import plot_psd
+    from .railway.report import write_band_outputs
 
     result.save(out / "spectra.npz")
     for quantity in ("accel", "force"):
         with atomic_write(out / f"{quantity}_psd.png") as file:
             plot_psd(result, quantity, file)
     summary = result_summary(result)
+    write_band_outputs(result, out, summary)
     summary["physics_warnings"] = result_concerns(result)
     with atomic_write(out / "summary.json", "w") as file:
         json.dump(summary, file, indent=2)
@@ -425,7 +430,7 @@ def write_outputs(result, out: Path) -> None:
     rows += [(f"time {k}", f"{v:.3f}", "s") for k, v in result.timings.items()]
     for name, value, unit in rows:
         print(f"  {name:<20} {value:>14}  {unit}")
-    print(f"wrote {out}/: spectra.npz summary.json accel_psd.png force_psd.png")
+    print(f"wrote {out}/: spectra.npz summary.json accel_psd.png force_psd.png bands.csv bands.png")
     for concern in summary["physics_warnings"]:
         print(f"mdroll: warning: {concern}", file=sys.stderr)
 
@@ -479,6 +484,43 @@ def cmd_bench(args) -> int:
     return 0
 
 
+def roughness_parser(sub) -> None:
+    """``mdroll roughness check | filter | profile``."""
+    p = sub.add_parser("roughness", help="roughness models: physics checks, contact filter vs CNOSSOS-EU, measured "
+                       "profiles (docs/roughness.md)")
+    tasks = p.add_subparsers(dest="task", required=True, parser_class=_Parser)
+    check = tasks.add_parser("check", help="line spectra, dB round trip, measured profile, eq 39 high band, eq 63, "
+                             "coupled vs decoupled, contact filter: roughness.json; exit 1 on a failure")
+    size_options(check, quick="CPU sizes, about a minute (default)", full="thesis-scale ensembles (GPU)")
+    check.add_argument("--seed", type=int, default=0)
+    check.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
+    output(check)
+    filt = tasks.add_parser("filter", help="the MDR contact filter beside CNOSSOS-EU A3: contact_filter.csv and .png")
+    output(filt)
+    prof = tasks.add_parser("profile", help="a measured profile (CSV/NPY: x, h in m; or h with --dx): Welch PSD with "
+                            "its confidence band (profile_psd.csv, usable as roughness_table) and its band levels")
+    prof.add_argument("file")
+    prof.add_argument("--dx", type=float, help="sample spacing (m) of a one-column profile")
+    prof.add_argument("--segment", type=float, help="Welch segment length (m; default an eighth of the profile)")
+    output(prof)
+
+
+def cmd_roughness(args) -> int:
+    from .railway import tasks as cli_tasks
+
+    out = _output_dir(args)
+    if args.task == "check":
+        from .devices import resolve_device
+
+        passed = cli_tasks.check(args.size or "quick", args.seed, resolve_device(args.device), out)
+        return 0 if passed else 1
+    if args.task == "filter":
+        cli_tasks.contact_filter(out)
+        return 0
+    cli_tasks.profile(args.file, args.dx, args.segment, out)
+    return 0
+
+
 def cmd_study(args) -> int:
     from .studies import STUDIES, check_name, run_study
     from .studies.report import format_table, write_page, write_study
@@ -515,7 +557,7 @@ def main(argv=None) -> int:
     try:
         args = _parser().parse_args(argv)
         code = {"params": cmd_params, "run": cmd_run, "validate": cmd_validate, "bench": cmd_bench,
-                "merge": cmd_merge, "study": cmd_study}[args.command](args)
+                "merge": cmd_merge, "roughness": cmd_roughness, "study": cmd_study}[args.command](args)
         sys.stdout.flush()  # here, so that a closed pipe is met inside the handlers below
         return code
     except UsageError as exc:

@@ -36,6 +36,16 @@ def _check_finite_positive(name: str, value) -> None:
         raise ParameterError(f"{name} = {value!r} is not allowed: it must be positive and finite")
 
 
+#: Roughness models of the ``roughness`` field (:mod:`mdroll.roughness`), the default first.
+ROUGHNESS_MODELS = ("powerlaw", "rolloff", "table", "bands", "iso3095")
+#: Which spectrum a roughness spectrum is: of the MDR line, of a line scan, or areal (isotropic).
+SPECTRUM_KINDS = ("mdr", "profile", "areal")
+#: Normalizations of the line: to RMS h0 (eq 50), or the spectrum's own absolute level.
+ROUGHNESS_LEVELS = ("rms", "absolute")
+#: Fields given as text (TOML strings, ``--set name=value`` taken verbatim).
+TEXT_FIELDS = ("roughness", "roughness_table", "roughness_kind", "roughness_level")
+
+
 @dataclass(frozen=True)
 class Params:
     """Every parameter of physics.md section 1, with the thesis defaults (Table 1, Appendix A).
@@ -73,6 +83,24 @@ class Params:
         without ``--realizations``). Default 300. A property of the run, not of the physics:
         results, checkpoints and merges compare and store :meth:`physical_dict`, and a result
         keeps its own count (``EnsembleResult.n_real``).
+    roughness : str
+        Roughness spectrum model (:mod:`mdroll.roughness`): ``"powerlaw"`` (default, eq 33 with
+        hard cut-offs q_min, q_max), ``"rolloff"`` (eq 33 above ``q_r``, flat below it down to the
+        grid's first wavenumber 2 pi / L), ``"table"`` (a PSD table (q, C) in ``roughness_table``),
+        ``"bands"`` (1/3-octave levels (lambda_mm, L_r dB re 1 um) in ``roughness_table``),
+        ``"iso3095"`` (the EN ISO 3095:2013 limit spectrum).
+    q_r : float or None
+        Roll-off wavenumber (rad/m) of ``roughness = "rolloff"``; ``None`` (default) means q_min.
+    roughness_table : str
+        File of the ``"table"`` / ``"bands"`` model (CSV with two columns, or NPY of shape (K, 2)).
+    roughness_kind : str or None
+        Which spectrum the table holds: ``"mdr"``, ``"profile"`` (a line scan) or ``"areal"``
+        (isotropic C_2D); ``None`` means ``"profile"`` for table, bands and iso3095 (measurements
+        are line scans) and ``"mdr"`` for the power-law models.
+    roughness_level : str or None
+        ``"rms"``: the line is scaled to RMS h0 (eq 50); ``"absolute"``: the spectrum's own level,
+        no rescaling (h0 unused). ``None`` means ``"rms"`` for the power-law models (which carry no
+        level of their own) and ``"absolute"`` for table, bands and iso3095.
     """
 
     E: float = 210e9
@@ -88,6 +116,11 @@ class Params:
     q_min: float = physics.TWO_PI / 5e-3
     q_max: float | None = field(default=None)
     n_real: int = 300
+    roughness: str = "powerlaw"
+    q_r: float | None = None
+    roughness_table: str = ""
+    roughness_kind: str | None = None
+    roughness_level: str | None = None
 
     def __post_init__(self) -> None:
         for name in ("E", "R", "m", "F_N", "v0", "L", "dx", "h0", "q_min"):
@@ -160,6 +193,56 @@ class Params:
                 f"q_min = {self.q_min!r}, q_max = {self.q_max!r} rad/m hold no wavenumber q_k = 2 pi k / L "
                 f"of the grid (2 pi / L = {self.dq:.6g} rad/m)"
             )
+        self._check_roughness()
+
+    def _check_roughness(self) -> None:
+        """The roughness fields: names from their allowed sets, q_r and the table where the model
+        uses them (the table file itself is read, and checked, by :mod:`mdroll.roughness`)."""
+        choices = {"roughness": ROUGHNESS_MODELS, "roughness_kind": (None,) + SPECTRUM_KINDS,
+                   "roughness_level": (None,) + ROUGHNESS_LEVELS}
+        for name, allowed in choices.items():
+            value = getattr(self, name)
+            if value not in allowed:
+                raise ParameterError(f"{name} = {value!r} is not allowed: choose one of {list(allowed)}")
+        if self.q_r is not None:
+            if self.roughness != "rolloff":
+                raise ParameterError(f"q_r = {self.q_r!r} is not allowed with roughness = {self.roughness!r}: "
+                                     "the roll-off wavenumber belongs to roughness = 'rolloff'")
+            _check_finite_positive("q_r", self.q_r)
+            if not self.dq <= self.q_r < self.q_max:
+                raise ParameterError(f"q_r = {self.q_r!r} rad/m is not allowed: it must lie in [2 pi / L, q_max) = "
+                                     f"[{self.dq:.6g}, {self.q_max:.6g}) rad/m")
+        if not isinstance(self.roughness_table, str):
+            raise ParameterError(f"roughness_table must be a file name (str), got {self.roughness_table!r}")
+        tabulated = self.roughness in ("table", "bands")
+        if tabulated != bool(self.roughness_table):
+            raise ParameterError(
+                f"roughness_table = {self.roughness_table!r} is not allowed with roughness = {self.roughness!r}: "
+                "roughness 'table' and 'bands' need a file, the other models none")
+        if self.roughness in ("powerlaw", "rolloff"):
+            if self.roughness_kind not in (None, "mdr"):
+                raise ParameterError(f"roughness_kind = {self.roughness_kind!r} is not allowed with roughness = "
+                                     f"{self.roughness!r}: the power-law models are MDR-line spectra ('mdr')")
+            if self.roughness_level == "absolute":
+                raise ParameterError(f"roughness_level = 'absolute' is not allowed with roughness = {self.roughness!r}: "
+                                     "its level comes from h0 (eq 50); use 'rms'")
+        if self.roughness == "iso3095" and self.roughness_kind not in (None, "profile"):
+            raise ParameterError(f"roughness_kind = {self.roughness_kind!r} is not allowed with roughness = 'iso3095': "
+                                 "the EN ISO 3095 limit is a profile (line-scan) spectrum")
+
+    @property
+    def spectrum_kind(self) -> str:
+        """The kind of the roughness spectrum the fields name: ``roughness_kind`` resolved."""
+        if self.roughness_kind is not None:
+            return self.roughness_kind
+        return "mdr" if self.roughness in ("powerlaw", "rolloff") else "profile"
+
+    @property
+    def level(self) -> str:
+        """``roughness_level`` resolved: ``"rms"`` or ``"absolute"``."""
+        if self.roughness_level is not None:
+            return self.roughness_level
+        return "rms" if self.roughness in ("powerlaw", "rolloff") else "absolute"
 
     # ------------------------------------------------------------------ derived quantities
     @property

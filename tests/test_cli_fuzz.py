@@ -19,6 +19,7 @@ from hypothesis import strategies as st
 import mdroll.plotting
 from mdroll import EnsembleResult, Params, cli
 from mdroll.ensemble import batching
+from mdroll.params import ROUGHNESS_LEVELS, ROUGHNESS_MODELS, SPECTRUM_KINDS, TEXT_FIELDS
 
 NAMES = cli.PARAM_NAMES
 TINY = {"L": 0.025, "dx": 2.5e-5}
@@ -26,9 +27,16 @@ DEFAULTS = {**Params().as_dict(), **TINY, "q_max": math.pi / TINY["dx"], "n_real
 SPECIAL = [0.0, -1.0, 1e-300, 1e300, 1e100, float("nan"), float("inf"), -float("inf"), 5e-324]
 
 
+ROUGHNESS_WORDS = [*ROUGHNESS_MODELS, *SPECTRUM_KINDS, *ROUGHNESS_LEVELS, "missing.csv"]
+
+
 def _value(name: str):
-    """A value for parameter ``name``: near its (tiny-run) default, an extreme, or any float."""
-    near = st.floats(-3, 3).map(lambda exponent: DEFAULTS[name] * 10.0**exponent)
+    """A value for parameter ``name``: near its (tiny-run) default, an extreme, or any float; for a
+    text field (the roughness model's) one of its words or any short text."""
+    if name in TEXT_FIELDS:
+        return st.one_of(st.sampled_from(ROUGHNESS_WORDS), st.text(max_size=4), st.floats())
+    default = DEFAULTS[name] if DEFAULTS[name] is not None else DEFAULTS["q_min"]  # q_r: None means q_min
+    near = st.floats(-3, 3).map(lambda exponent: default * 10.0**exponent)
     if name == "n_real":
         return st.one_of(st.integers(-2, 3), st.sampled_from([10**12, 2.5]))
     return st.one_of(near, near, st.sampled_from(SPECIAL), st.floats(allow_nan=True, allow_infinity=True))

@@ -116,8 +116,8 @@ def test_cli_rejects_bad_config_files(tmp_path, text, needle, cli, one_line_erro
 def test_non_finite_force_stops_the_run_naming_realization_and_stage(monkeypatch):
     real = pipeline.rough_lines
 
-    def poisoned(params, seed, idx, device):
-        lines = np.array(real(params, seed, idx, device=device))
+    def poisoned(params, seed, idx, device, **options):
+        lines = np.array(real(params, seed, idx, device=device, **options))
         if 4 in idx:
             lines[list(idx).index(4), 100] = np.nan
         return lines

@@ -47,8 +47,9 @@ def check_seed(seed) -> int:
     return int(seed)
 
 
-def rough_lines(params: Params, seed: int, realizations, device: str = "cpu"):
-    """Rough lines h_r(x_i), one per realization, with RMS exactly ``params.h0`` (m).
+def rough_lines(params: Params, seed: int, realizations, device: str = "cpu", roughness=None):
+    """Rough lines h_r(x_i), one per realization, with RMS exactly ``params.h0`` (m), or with the
+    absolute level of their spectrum.
 
     Exactly physics.md section 3. On the grid ``x_i = i dx`` (i = 0..n-1, ``n = params.n_points``)
     and wavenumbers ``q_k = 2 pi k / L`` (L = n dx),
@@ -66,6 +67,13 @@ def rough_lines(params: Params, seed: int, realizations, device: str = "cpu"):
     generator, :func:`mdroll.kernels.lines.uniform_from_key`), so a line is the same to
     rounding whatever the batch it is made in and whatever the device.
 
+    Any other spectrum (``params.roughness`` other than "powerlaw", or a ``roughness`` model of
+    :mod:`mdroll.roughness`) replaces C_1D: its amplitudes ``B(q_k)`` on the grid are computed once
+    per call on the host (:func:`mdroll.roughness.models.mode_amplitude_table`) and uploaded; the
+    phases are the same hashes, so lines stay reproducible from (seed, index). With the "rms" level
+    (:func:`mdroll.roughness.models.resolve_level`) each line is scaled to RMS h0 as above; with
+    "absolute" it keeps the spectrum's level (its expected mean square ``2 dq sum_k C(q_k)``).
+
     Parameters
     ----------
     params : Params
@@ -75,6 +83,9 @@ def rough_lines(params: Params, seed: int, realizations, device: str = "cpu"):
         ``R`` for indices 0..R-1, or the realization indices themselves.
     device : str
         ``"cpu"``, ``"cuda"``, ``"cuda:N"`` or ``"auto"``.
+    roughness : mdroll.roughness.models.RoughnessSpectrum, optional
+        A spectrum instead of the one the roughness fields of ``params`` name (any model, a
+        callable included).
 
     Returns
     -------
@@ -82,25 +93,34 @@ def rough_lines(params: Params, seed: int, realizations, device: str = "cpu"):
         A NumPy array on the CPU; a Warp array (``.numpy()``, CuPy via ``cupy.asarray``) on CUDA.
     """
     device = resolve_device(device)
-    return irfft_rows(random_spectra(params, seed, realizations, device), params.n_points, device)
+    return irfft_rows(random_spectra(params, seed, realizations, device, roughness), params.n_points, device)
 
 
-def random_spectra(params: Params, seed: int, realizations, device: str):
+def random_spectra(params: Params, seed: int, realizations, device: str, roughness=None):
     """The (R, n/2 + 1) half spectra (``wp.vec2d``, on ``device``) whose unnormalized inverse
     real FFTs (:func:`mdroll.ensemble.fft.irfft_rows`) are the lines of :func:`rough_lines`,
-    already scaled to RMS h0."""
+    already scaled to RMS h0 (or at their absolute level)."""
     from ..kernels.lines import line_scales, mode_amplitudes, random_phase_spectrum
+    from ..roughness.models import from_params, mode_amplitude_table, resolve_level
 
     wp = warp()
     seed = check_seed(seed)
     indices = realization_indices(realizations)
     n = params.n_points
-    k_first, k_last = params.mode_range
-    exponent = -(params.H + 0.5)
-    nyquist = n // 2 if n % 2 == 0 and k_last == n // 2 else -1
     bins = n // 2 + 1
-    amplitudes = wp.empty(bins, dtype=wp.float64, device=device)
-    wp.launch(mode_amplitudes, dim=bins, inputs=[k_first, k_last, exponent, amplitudes], device=device)
+    absolute = 0
+    if roughness is None and params.roughness == "powerlaw":
+        # the default spectrum (eq 33): its amplitudes made on the device, no table to upload
+        k_first, k_last = params.mode_range
+        nyquist = n // 2 if n % 2 == 0 and k_last == n // 2 else -1
+        amplitudes = wp.empty(bins, dtype=wp.float64, device=device)
+        wp.launch(mode_amplitudes, dim=bins, inputs=[k_first, k_last, -(params.H + 0.5), amplitudes], device=device)
+    else:
+        spectrum = from_params(params) if roughness is None else roughness
+        table = mode_amplitude_table(params, spectrum)
+        absolute = int(resolve_level(params, spectrum) == "absolute")
+        nyquist = n // 2 if n % 2 == 0 and table[n // 2] != 0.0 else -1
+        amplitudes = wp.array(table, dtype=wp.float64, device=device)
     # Parseval's sum of the very amplitudes the spectra use, kept on the device
     sum_of_squares = wp.empty(1, dtype=wp.float64, device=device)
     wp.utils.array_inner(amplitudes, amplitudes, out=sum_of_squares)
@@ -108,7 +128,7 @@ def random_spectra(params: Params, seed: int, realizations, device: str):
     scales = wp.empty(indices.size, dtype=wp.float64, device=device)
     keys = wp.empty(indices.size, dtype=wp.uint64, device=device)
     wp.launch(line_scales, dim=indices.size,
-              inputs=[rows, wp.uint64(seed), amplitudes, nyquist, sum_of_squares, params.h0, scales, keys], device=device)
+              inputs=[rows, wp.uint64(seed), amplitudes, nyquist, sum_of_squares, params.h0, absolute, scales, keys], device=device)
     spectrum = wp.empty((indices.size, bins), dtype=wp.vec2d, device=device)
     wp.launch(random_phase_spectrum, dim=(indices.size, (bins + 1) // 2),
               inputs=[keys, amplitudes, nyquist, scales, spectrum], device=device)

@@ -24,11 +24,12 @@ from .coupled import coupled_series
 from .force import launch_force
 from .lines import check_seed, realization_indices, rough_lines
 from .prepare import BOUNDARIES, DEFAULT_LEAF_SIZE, prepare_lines
+from ..roughness.models import from_params, line_rms
 from .result import EnsembleResult
 from .spectra import psd_moments_of_batch, series_sums, to_host
 
 MODES = ("decoupled", "coupled")
-#: The open-boundary wheel range of an ensemble is set from d0 + H_BOUND_SIGMAS * h0, not from
+#: The open-boundary wheel range of an ensemble is set from d0 + H_BOUND_SIGMAS * (the lines' RMS), not from
 #: each batch's maximum, so every batch has the same steps. Forces stay exact either way.
 H_BOUND_SIGMAS = 6.0
 #: With a checkpoint, batches are sized so that one takes about this long (s): a kill loses at
@@ -62,6 +63,7 @@ def run_ensemble(
     checkpoint=None,
     resume: bool = False,
     memory_limit: int | None = None,
+    roughness=None,
 ) -> EnsembleResult:
     """Run an ensemble and return its averaged force and acceleration spectra.
 
@@ -82,6 +84,9 @@ def run_ensemble(
     ``memory_limit`` is given (a different run is refused, naming the differences); the result
     is the uninterrupted run's to rounding. A line too long for one realization to fit in
     memory is refused before any work (:func:`~mdroll.ensemble.batching.check_run_fits`).
+
+    ``roughness``: a spectrum of :mod:`mdroll.roughness` instead of the one the roughness fields
+    of ``params`` name (API only; its description joins the checkpoint's key).
     """
     # every argument checked here, once
     check_params(params)
@@ -102,6 +107,10 @@ def run_ensemble(
 
     key = {"params": params.physical_dict(), "seed": seed, "realizations": indices.tolist(), "algorithm": algorithm,
            "mode": mode, "boundary": boundary, "window": window, "leaf_size": leaf_size}
+    if roughness is None and params.roughness != "powerlaw":
+        roughness = from_params(params)  # read (a table file) once, not per batch
+    if roughness is not None:
+        key["roughness"] = roughness.describe()
     totals = RunTotals()
     if resume:
         if checkpoint is None or not Path(checkpoint).exists():
@@ -113,7 +122,7 @@ def run_ensemble(
         batch = default_batch(params, device, memory_limit, wanted=len(indices))
     totals.batch = int(batch)
     d0 = params.d0
-    h_bound = H_BOUND_SIGMAS * params.h0
+    h_bound = H_BOUND_SIGMAS * line_rms(params, roughness)
     timings = totals.timings
     bar = progress_bar(len(indices), progress)
     bar.update(totals.done)
@@ -126,7 +135,7 @@ def run_ensemble(
         began = time.perf_counter()
         idx = indices[start:start + size]
         last = start + len(idx) >= len(indices)
-        lines = stage("generate", lambda: to_warp(rough_lines(params, seed, idx, device=device), device))
+        lines = stage("generate", lambda: to_warp(rough_lines(params, seed, idx, device=device, roughness=roughness), device))
         prepared = stage("build", lambda: prepare_lines(lines, params, algorithm, boundary, d0, device, leaf_size, h_bound))
         totals.steps = prepared.steps
         decoupled = mode == "decoupled"

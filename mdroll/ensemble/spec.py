@@ -36,6 +36,9 @@ class EnsembleSpec:
         As for :func:`mdroll.run_ensemble`.
     window : bool
         Hann window on the force and acceleration series before their PSDs.
+    roughness : mdroll.roughness.models.RoughnessSpectrum or None
+        A spectrum instead of the one the roughness fields of ``params`` name (None: those).
+        Serialized by its description; a callable spectrum cannot be read back.
     """
 
     params: Params
@@ -46,6 +49,7 @@ class EnsembleSpec:
     mode: str = "decoupled"
     boundary: str = "open"
     window: bool = False
+    roughness: object = None
 
     def __post_init__(self) -> None:
         for name in ("first", "realizations"):
@@ -73,12 +77,17 @@ class EnsembleSpec:
         """A JSON-ready dict; :meth:`from_dict` inverts it."""
         out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
         out["params"] = self.params.as_dict()
+        out["roughness"] = None if self.roughness is None else self.roughness.describe()
         return out
 
     @classmethod
     def from_dict(cls, data: dict) -> "EnsembleSpec":
+        from ..roughness.models import from_description
+
         data = dict(data)
-        return cls(params=Params(**data.pop("params")), **data)
+        roughness = data.pop("roughness", None)
+        return cls(params=Params(**data.pop("params")),
+                   roughness=None if roughness is None else from_description(roughness), **data)
 
     def key(self) -> str:
         """A hex digest of the spec and the mdroll version: equal keys, equal results (to rounding)."""
@@ -94,7 +103,7 @@ class EnsembleSpec:
 
         return run_ensemble(self.params, seed=self.seed, realizations=self.indices, algorithm=self.algorithm,
                             mode=self.mode, boundary=self.boundary, window=self.window, device=device,
-                            progress=progress, **options)
+                            progress=progress, roughness=self.roughness, **options)
 
 
 def run_specs(specs: Iterable[EnsembleSpec], device: str = "auto", progress: bool = False, runner=None,

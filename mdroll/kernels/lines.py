@@ -63,6 +63,7 @@ def line_scales(
     nyquist: int,
     sum_of_squares: wp.array(dtype=wp.float64),
     target: wp.float64,
+    absolute: int,
     scales: wp.array(dtype=wp.float64),
     keys: wp.array(dtype=wp.uint64),
 ):
@@ -72,11 +73,16 @@ def line_scales(
     ``mean(h^2) = scale^2 (2 sum_{0 < k < n/2} a_k^2 + (a_{n/2} cos phi_{n/2})^2)``, with
     ``sum_of_squares[0] = sum_k a_k^2`` over the whole half spectrum. Only the Nyquist mode
     (``nyquist`` = n/2 when the line has one, else -1) is real, so only its share depends on
-    the phase. Also writes each row's generator key (:func:`realization_key`), so that
+    the phase. With ``absolute`` nonzero the amplitudes are already the physical ``B(q_k)`` of an
+    absolute spectrum (``mdroll.roughness.models.mode_amplitude_table``) and every scale is 1.
+    Also writes each row's generator key (:func:`realization_key`), so that
     :func:`random_phase_spectrum` hashes once per mode, not twice."""
     r = wp.tid()
     key = realization_key(seed, realizations[r])
     keys[r] = key
+    if absolute != 0:
+        scales[r] = wp.float64(1.0)
+        return
     total = wp.float64(2.0) * sum_of_squares[0]
     if nyquist > 0:
         a_nyquist = amplitudes[nyquist]
@@ -109,7 +115,8 @@ def random_phase_spectrum(
     spectrum: wp.array2d(dtype=wp.vec2d),
 ):
     """Half spectrum X_k (k = 0..n/2) of one rough line per row, for an inverse real FFT:
-    ``X_k = scales[r] a_k exp(i phi_k)`` (a_k from :func:`mode_amplitudes`), with
+    ``X_k = scales[r] a_k exp(i phi_k)`` (a_k from :func:`mode_amplitudes`, or a table uploaded
+    from the host for any other spectrum), with
     ``phi_k = 2 pi u(seed, realization, k)`` (eq 16-17; ``keys`` from :func:`line_scales`). The
     Nyquist mode (k = ``nyquist``) of a real line is real: ``X_{n/2} = scales[r] a_{n/2} cos(phi)``.
 

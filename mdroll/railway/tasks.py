@@ -1,0 +1,133 @@
+"""The work behind ``mdroll roughness check | filter | profile``: run, write files, print a table.
+
+Files are written atomically (temporary file in the same folder, then rename).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..files import atomic_write
+from ..roughness import bands, filters, measured
+
+
+def _write_text(path: Path, text: str) -> None:
+    with atomic_write(path, "w") as file:
+        file.write(text)
+
+
+def _passes(record: dict) -> list[tuple[str, bool]]:
+    out = [(f"line spectrum {r['model']}", r["passed"]) for r in record["lines"]]
+    out += [("dB round trip", record["round_trip"]["passed"]), ("measured profile", record["measured_profile"]["passed"])]
+    out += [(f"eq 39 high band {r['model']}", r["passed"]) for r in record["high_band"]]
+    return out
+
+
+def check(size: str, seed: int, device: str, out: Path) -> bool:
+    """``mdroll roughness check``: :func:`mdroll.railway.studies.run_all` into roughness.json and
+    contact_filter.png; a summary on stdout; True when every check with a criterion passed."""
+    from ..provenance import environment
+    from .studies import run_all
+
+    record = run_all(size, seed, device)
+    record["environment"] = environment(device)
+    _write_text(out / "roughness.json", json.dumps(record, indent=1, default=float))
+    plot_contact_filter(record["contact_filter"]["cnossos"], out / "contact_filter.png", record["contact_filter"])
+    results = _passes(record)
+    for name, passed in results:
+        print(f"  {'PASS' if passed else 'FAIL'}  {name}")
+    e = record["eq63"]
+    print(f"  eq 63 roll-off: measured {e['rolloff']['measured_ratio']:.3g} "
+          f"(+-{e['rolloff']['measured_ratio_rel_stderr'] * 100:.0f} %), closed form on the band "
+          f"{e['rolloff']['closed_form_band']:.3g}, eq 63 (thesis) {e['rolloff']['eq63_thesis']:.3g}")
+    print(f"  eq 63 ISO 3095: measured {e['iso3095']['measured_ratio']:.3g}, closed form {e['iso3095']['closed_form_band']:.3g}")
+    for case in record["dynamics"]["cases"]:
+        print(f"  ISO 3095 {case['offset_dB']:+g} dB, v0 {case['v0']:g} m/s: contact lost {case['contact_lost_fraction']:.3g}, "
+              f"max |L_a coupled - decoupled| {case['max_abs_difference_dB']:.2f} dB at {case['at_Hz']:g} Hz: decoupled "
+              f"{'valid' if case['decoupled_valid'] else 'NOT valid'}")
+    print(f"wrote {out}/: roughness.json contact_filter.png")
+    return all(passed for _, passed in results)
+
+
+def contact_filter_table(comparison: dict) -> str:
+    """CSV: wavelength (mm), then per CNOSSOS case A3, MDR and MDR - A3 (dB)."""
+    text = io.StringIO()
+    writer = csv.writer(text)
+    header = ["wavelength_mm"]
+    for c in comparison["cases"]:
+        tag = f"{c['load_N'] / 1e3:g}kN_{c['diameter_m'] * 1e3:g}mm"
+        header += [f"A3_{tag}", f"MDR_{tag}", f"MDR_minus_A3_{tag}"]
+    writer.writerow(header)
+    for i, lam in enumerate(comparison["wavelength_mm"]):
+        row = [lam]
+        for c in comparison["cases"]:
+            row += [c["A3_dB"][i], round(c["MDR_dB"][i], 2), round(c["difference_dB"][i], 2)]
+        writer.writerow(row)
+    return text.getvalue()
+
+
+def plot_contact_filter(comparison: dict, path, measured_record: dict | None = None) -> None:
+    """The MDR contact filter (closed band form) and CNOSSOS-EU A3 for the five cases against
+    wavelength; with ``measured_record`` (:func:`studies.contact_filter_study`) the ensemble's."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(9, 5.5), constrained_layout=True)
+    lam = np.array(comparison["wavelength_mm"])
+    for i, c in enumerate(comparison["cases"]):
+        color = f"C{i}"
+        tag = f"{c['load_N'] / 1e3:g} kN, D {c['diameter_m'] * 1e3:g} mm (a = {c['a_m'] * 1e3:.2f} mm)"
+        ax.semilogx(lam, c["A3_dB"], "o--", color=color, ms=3, label=f"A3 {tag}")
+        ax.semilogx(lam, c["MDR_dB"], "-", color=color, label=f"MDR {tag}")
+    if measured_record is not None:
+        ax.semilogx(measured_record["wavelength_mm"], measured_record["measured_dB"], "k*", ms=7,
+                    label=f"MDR measured (ISO 3095 ensemble, a = {measured_record['a_m'] * 1e3:.2f} mm)")
+    ax.invert_xaxis()
+    ax.set_xlabel("wavelength (mm)")
+    ax.set_ylabel("contact filter (dB)")
+    ax.set_ylim(-40, 2)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    with atomic_write(path) as file:
+        fig.savefig(file, dpi=110, format="png")
+    plt.close(fig)
+
+
+def contact_filter(out: Path) -> None:
+    """``mdroll roughness filter``: contact_filter.csv, contact_filter.json and contact_filter.png."""
+    comparison = filters.cnossos_comparison()
+    _write_text(out / "contact_filter.csv", contact_filter_table(comparison))
+    _write_text(out / "contact_filter.json", json.dumps(comparison, indent=1))
+    plot_contact_filter(comparison, out / "contact_filter.png")
+    print(contact_filter_table(comparison))
+    print(f"wrote {out}/: contact_filter.csv contact_filter.json contact_filter.png")
+
+
+def profile(file: str, dx: float | None, segment: float | None, out: Path) -> None:
+    """``mdroll roughness profile``: profile_psd.csv (q rad/m, C m^3 two-sided, 95 % lower and
+    upper; a roughness_table for roughness = "table") and profile_bands.csv (L_r per band)."""
+    prof = measured.load_profile(file, dx)
+    estimate = measured.welch_psd(prof, segment)
+    rows = ["# Welch PSD of " + str(file) + f": Hann window, {estimate.segments} segments, dof {estimate.dof:.1f}",
+            "q_rad_per_m,C_m3,lower_95,upper_95"]
+    rows += [f"{q:.10g},{c:.10g},{lo:.10g},{hi:.10g}" for q, c, lo, hi in
+             zip(estimate.q, estimate.psd, estimate.lower, estimate.upper) if c > 0]
+    _write_text(out / "profile_psd.csv", "\n".join(rows) + "\n")
+    dq = float(estimate.q[1] - estimate.q[0])
+    n = bands.wavelength_bands_of_grid(dq, float(estimate.q[-1]))
+    levels, counts = bands.roughness_levels(estimate.q, estimate.psd, dq, n)
+    lines = ["wavelength_mm,L_r_dB_re_1um,bins"] + [f"{w:g},{l:.2f},{c}" for w, l, c in
+                                                    zip(bands.nominal(n), levels, counts) if math.isfinite(l)]
+    _write_text(out / "profile_bands.csv", "\n".join(lines) + "\n")
+    print(f"profile {file}: {prof.h.size} points, dx {prof.dx:.4g} m, RMS {np.std(prof.h):.4g} m; "
+          f"Welch {estimate.segments} segments, {estimate.dof:.1f} degrees of freedom")
+    print("\n".join(lines))
+    print(f"wrote {out}/: profile_psd.csv profile_bands.csv")
