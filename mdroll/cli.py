@@ -142,6 +142,32 @@ def _parser() -> argparse.ArgumentParser:
     p_merge.add_argument("inputs", nargs="+", metavar="RUN", help="run directories or spectra.npz files")
     output(p_merge)
 
+    p_inv = sub.add_parser("invert", help="estimate roughness and contact parameters from a spectrum: inverse.json, "
+                           "inverse.png and a table")
+    p_inv.add_argument("spectrum", nargs="?", metavar="SPECTRUM", help="mdroll spectra.npz (or its run directory), or a "
+                       "CSV/NPZ table of frequency and PSD (declare its units)")
+    p_inv.add_argument("--known", action="append", metavar="NAME=VALUE", help="a known value in SI units (repeatable): "
+                       "v0, m, R, E, nu, E_star, F_N, h0, H, q_min, q_max, a, ...")
+    p_inv.add_argument("--free", metavar="NAMES", help="comma-separated parameters to fit (default H,q_min,a,h0 and E_star "
+                       "with m known, a_jitter)")
+    p_inv.add_argument("--band", metavar="LO:HI[Hz|rad/s]", help="fitted band, e.g. 20:20000Hz (default: the spectrum's, "
+                       "above twice the resonance)")
+    p_inv.add_argument("--quantity", choices=["accel", "force"], help="which PSD (default accel)")
+    p_inv.add_argument("--window", action="store_true", help="the series had the Hann window (mdroll run --window)")
+    p_inv.add_argument("--frequency-unit", choices=["Hz", "rad/s"], help="table: unit of the frequency column")
+    p_inv.add_argument("--sided", choices=["one", "two"], help="table: one- or two-sided PSD")
+    p_inv.add_argument("--density", choices=["Hz", "rad/s"], help="table: PSD per Hz or per rad/s")
+    p_inv.add_argument("--passes", type=int, help="number of averaged passes K (default the file's, else 1)")
+    p_inv.add_argument("--bin", type=int, default=1, help="average this many neighbouring bins (default 1)")
+    p_inv.add_argument("--bootstrap", type=int, default=0, metavar="N", help="parametric bootstrap replicates (mdroll "
+                       "spectra only)")
+    p_inv.add_argument("--no-profile", action="store_true", help="skip the profile likelihoods")
+    p_inv.add_argument("--device", default="auto", help="device of the bootstrap's and round trip's simulations")
+    p_inv.add_argument("--round-trip", action="store_true", help="run the round-trip study instead: roundtrip.json, "
+                       "roundtrip.png, roundtrip.md")
+    size_options(p_inv, quick="round trip: the CPU-sized grid (default)", full="round trip: the full grid (GPU)")
+    output(p_inv)
+
     p_bench = sub.add_parser("bench", help="scaling study of the three algorithms: bench.json, bench.png and a table")
     size_options(p_bench, quick="small sizes, minutes on a 2-core CPU (default)", full="the GPU machine's study")
     p_bench.add_argument("--device", action="append", help="cpu, cuda or cuda:N (repeatable; default every available one)")
@@ -553,11 +579,96 @@ def cmd_study(args) -> int:
     return 0
 
 
+def _band(text: str):
+    """``LO:HI`` with an optional unit suffix Hz or rad/s (default rad/s) -> (lo, hi) in rad/s."""
+    import math
+
+    unit = 1.0
+    for suffix, factor in (("rad/s", 1.0), ("Hz", 2.0 * math.pi)):
+        if text.endswith(suffix):
+            text, unit = text[: -len(suffix)], factor
+            break
+    try:
+        lo, hi = (float(v) * unit for v in text.split(":"))
+    except ValueError:
+        raise UsageError(f"--band {text!r}: expected LO:HI with an optional unit Hz or rad/s, e.g. 20:20000Hz") from None
+    return lo, hi
+
+
+def _known(items) -> dict:
+    known = {}
+    for item in items or []:
+        if "=" not in item:
+            raise UsageError(f"--known expects NAME=VALUE, got {item!r}")
+        key, text = item.split("=", 1)
+        try:
+            known[key.strip()] = float(text)
+        except ValueError:
+            raise UsageError(f"--known {item}: {text!r} is not a number") from None
+    return known
+
+
+#: What ``invert`` writes (``--force`` removes the old ones first).
+INVERT_OUTPUTS = ("inverse.json", "inverse.png", "roundtrip.json", "roundtrip.png", "roundtrip.md")
+
+
+def cmd_invert(args) -> int:
+    from .devices import resolve_device
+    from .files import atomic_write
+    from .inverse import fit, read_spectrum
+
+    if args.round_trip:
+        from .inverse.roundtrip import format_table, plot_study, run_study
+
+        if args.spectrum:
+            raise UsageError("--round-trip simulates its own spectra: give no SPECTRUM")
+        out = _output_dir(args, clear=INVERT_OUTPUTS)
+        say = (lambda text: None) if args.no_progress else (lambda text: print(text, file=sys.stderr, flush=True))
+        record = run_study(args.size or "quick", device=resolve_device(args.device), folder=out, progress=say)
+        with atomic_write(out / "roundtrip.png") as file:
+            plot_study(record, file)
+        with atomic_write(out / "roundtrip.md", "w") as file:
+            file.write(format_table(record) + "\n")
+        with atomic_write(out / "roundtrip.json", "w") as file:
+            json.dump(record, file, indent=1)
+        print(format_table(record))
+        print(f"{record['seconds']:.0f} s; wrote {out}/: roundtrip.json roundtrip.png roundtrip.md")
+        return 0
+    if not args.spectrum:
+        raise UsageError("give a SPECTRUM file (or --round-trip)")
+    path = Path(args.spectrum)
+    if path.is_dir():
+        path = path / "spectra.npz"
+    spectrum = read_spectrum(path, quantity=args.quantity, window=args.window, frequency_unit=args.frequency_unit,
+                             sided=args.sided, density=args.density, passes=args.passes)
+    free = [n.strip() for n in args.free.split(",") if n.strip()] if args.free else None
+    result = fit(spectrum, known=_known(args.known), free=free, band=_band(args.band) if args.band else None,
+                 passes=args.passes, bin=args.bin, profile=not args.no_profile)
+    if args.bootstrap:
+        from .inverse.roundtrip import bootstrap
+
+        result.bootstrap = bootstrap(spectrum, result, args.bootstrap, device=resolve_device(args.device), bin=args.bin)
+    out = _output_dir(args, clear=INVERT_OUTPUTS)
+    from .inverse.plot import plot_fit
+
+    with atomic_write(out / "inverse.png") as file:
+        plot_fit(result, file)
+    with atomic_write(out / "inverse.json", "w") as file:
+        json.dump({"source": str(path), **result.to_dict()}, file, indent=1)
+    print(result.table())
+    if result.bootstrap:
+        for name, (lo, hi) in result.bootstrap["ci95"].items():
+            print(f"  bootstrap 95% {name:<9} {lo:.6g} .. {hi:.6g}")
+    print(f"wrote {out}/: inverse.json inverse.png")
+    return 0
+
+
 def main(argv=None) -> int:
     try:
         args = _parser().parse_args(argv)
         code = {"params": cmd_params, "run": cmd_run, "validate": cmd_validate, "bench": cmd_bench,
-                "merge": cmd_merge, "roughness": cmd_roughness, "study": cmd_study}[args.command](args)
+                "merge": cmd_merge, "roughness": cmd_roughness, "study": cmd_study,
+                "invert": cmd_invert}[args.command](args)
         sys.stdout.flush()  # here, so that a closed pipe is met inside the handlers below
         return code
     except UsageError as exc:

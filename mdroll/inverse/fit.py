@@ -1,0 +1,551 @@
+"""The Whittle fit of an averaged spectrum: estimates, Fisher intervals, profiles, goodness of fit.
+
+Likelihood. A periodogram bin of a Gaussian series is its expected value S times chi^2_2 / 2;
+the mean of K independent passes is ``S chi^2_nu / nu`` with nu = 2K degrees of freedom, a Gamma
+variable of shape kappa = nu / 2. Averaging B neighbouring bins (``bin=B``) gives nu = 2 K B
+when the bins are independent (the model is averaged over the same bins). The negative
+log-likelihood used, up to terms free of the parameters, is
+
+    -log L(theta) = kappa * sum_j [ log S_j(theta) + P_j / S_j(theta) ]          (Whittle)
+
+over the bins j in the band; the estimate does not depend on kappa. Positive parameters are
+fitted as their logarithms (H as is), bounded (:data:`mdroll.inverse.model.PARAMETERS`), by
+scipy.optimize L-BFGS-B from data-driven starting values (a power law for H, the modulation
+frequency of the flattened spectrum for a, a scan for q_min, the peak for the resonance).
+
+Intervals. The expected Fisher information of the Whittle likelihood is
+``I = kappa * J^T J`` with ``J_jk = d log S_j / d theta_k`` (central differences). Simulated
+and measured spectra are rarely exactly chi-square: fixed-amplitude lines scatter less, a
+window correlates neighbouring bins (Hann: the variance of a sum over bins is 1.94x the
+independent one), and the model is not exact. So the covariance reported is the quasi-likelihood
+one, ``phi * tau * I^-1``, with the Pearson dispersion ``phi = sum z_j^2 / (n - p)`` of the
+standardized residuals ``z_j = sqrt(kappa) (P_j / S_j - 1)`` and ``tau = 1 + 2 sum_{l=1..3} rho_l``
+their correlation between neighbouring bins (at least 0.25); the raw ``I^-1`` intervals are kept as
+``ci95_fisher``. Intervals are symmetric in the fitted (log) scale. Profiles: for each free
+parameter, the others re-fitted on a grid of +-4 calibrated standard errors, as the deviance
+difference divided by phi tau; a profile that stays below 3.84 on a side is an open interval
+(a degeneracy or a weakly identified direction).
+
+Goodness of fit: the Gamma deviance ``D = 2 kappa sum (P/S - log(P/S) - 1)`` against chi^2 with
+n - p degrees of freedom, phi and tau, and a Kolmogorov-Smirnov test of P/S against the Gamma law.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.optimize
+import scipy.stats
+
+from ..params import ParameterError
+from .. import physics
+from .model import (KNOWN_ONLY, NUISANCE_DEFAULTS, PARAMETERS, Setting, check_free, contact_radius_from_load,
+                    default_free, derived, expected_psd, lambda_A, resolve_known)
+from .spectrum import Spectrum
+
+Z95 = scipy.stats.norm.ppf(0.975)
+CHI2_95 = scipy.stats.chi2.ppf(0.95, 1)
+MIN_BINS_PER_PARAMETER = 5
+MIN_BINS = 10
+#: Default top of the band of a simulated spectrum, as a fraction of its Nyquist frequency pi/dt:
+#: above it the springs' discretization adds power the model lacks (x1.05 at 0.24, x1.8 over
+#: 0.24-1 in an L = 0.2 m, 16-pass run at the defaults).
+SIMULATED_BAND_TOP = 0.2
+#: The default band of an acceleration spectrum starts at this multiple of its resonance: the
+#: periodogram of a finite record of an (almost) undamped resonance is not |A/F|^2 times the
+#: force's near omega_0 (the record's end states cancel part of the peak), while above it the
+#: response's shape ((1 - omega_0^2 / omega^2)^-2: x1.78 at 2 omega_0) still fixes E* with m.
+RESONANCE_MARGIN = 2.0
+_HUGE = 1e30
+
+
+@dataclass
+class FitResult:
+    """The outcome of :func:`fit`. Values in SI units (see :data:`~mdroll.inverse.model.PARAMETERS`).
+
+    ``estimates``: every model parameter (free ones estimated, the rest as fixed); ``ci95``,
+    ``stderr``: the free ones' calibrated 95 % intervals and standard errors; ``ci95_fisher``: the
+    uncalibrated ones; ``derived``: derived quantities with delta-method intervals; ``gof``:
+    goodness of fit; ``profiles``: ``{name: {"values": [...], "delta": [...], "ci95": [lo, hi]}}``.
+    """
+
+    free: list
+    estimates: dict
+    known: dict
+    stderr: dict
+    ci95: dict
+    ci95_fisher: dict
+    covariance: np.ndarray
+    correlation: np.ndarray
+    derived: dict
+    gof: dict
+    band: tuple
+    kappa: float
+    passes: int
+    passes_assumed: bool
+    success: bool
+    message: str
+    omega: np.ndarray
+    data: np.ndarray
+    model: np.ndarray
+    quantity: str
+    profiles: dict = field(default_factory=dict)
+    truth: dict | None = None
+    bootstrap: dict | None = None
+
+    def to_dict(self) -> dict:
+        """A JSON-ready dict (arrays as lists; the band's data and model included)."""
+        out = {
+            "free": self.free, "estimates": self.estimates, "known": self.known, "stderr": self.stderr,
+            "ci95": {k: list(v) for k, v in self.ci95.items()},
+            "ci95_fisher": {k: list(v) for k, v in self.ci95_fisher.items()},
+            "correlation": self.correlation.tolist(), "covariance_fitted_scale": self.covariance.tolist(),
+            "fitted_scale": {n: PARAMETERS[n][1] for n in self.free},
+            "derived": self.derived, "gof": self.gof, "band_rad_s": list(self.band), "kappa": self.kappa,
+            "passes": self.passes, "passes_assumed": self.passes_assumed, "success": self.success,
+            "message": self.message, "quantity": self.quantity,
+            "profiles": self.profiles, "truth": self.truth, "bootstrap": self.bootstrap,
+            "convention": "two-sided PSD per rad/s on omega (rad/s)",
+            "omega": self.omega.tolist(), "data": self.data.tolist(), "model": self.model.tolist(),
+        }
+        return _jsonable(out)
+
+    def table(self) -> str:
+        """The estimates as a text table: value, 95 % interval (calibrated), truth when known."""
+        lines = [f"{'parameter':<10} {'estimate':>12} {'95% low':>12} {'95% high':>12} {'unit':<14}"
+                 + (f" {'truth':>12} {'error':>9}" if self.truth else "")]
+        for name in self.free:
+            lo, hi = self.ci95[name]
+            row = f"{name:<10} {self.estimates[name]:>12.6g} {lo:>12.6g} {hi:>12.6g} {PARAMETERS[name][0]:<14}"
+            if self.truth and name in self.truth:
+                row += f" {self.truth[name]:>12.6g} {_error(name, self.estimates[name], self.truth[name]):>9}"
+            lines.append(row)
+        for name, item in self.derived.items():
+            lo, hi = item["ci95"]
+            row = f"{name:<10} {item['value']:>12.6g} {lo:>12.6g} {hi:>12.6g} {item['unit']:<14}"
+            if self.truth and name in self.truth:
+                row += f" {self.truth[name]:>12.6g} {_error(name, item['value'], self.truth[name]):>9}"
+            lines.append(row)
+        g = self.gof
+        lines.append(f"bins {g['bins']}, deviance/dof {g['deviance_per_dof']:.3g}, dispersion phi {g['phi']:.3g}, "
+                     f"bin correlation tau {g['tau']:.3g}, KS p {g['ks_p']:.3g}, K = {self.passes}"
+                     + (" (assumed)" if self.passes_assumed else ""))
+        return "\n".join(lines)
+
+
+def _error(name: str, value: float, truth: float) -> str:
+    return f"{value - truth:+.3f}" if name == "H" else f"{100 * (value / truth - 1):+.2f}%"
+
+
+def _jsonable(value):
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _jsonable(value.tolist())
+    if isinstance(value, (np.floating, float)):
+        value = float(value)
+        return value if math.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    return value
+
+
+class _Problem:
+    """The data of the band, the free and fixed parameters and the objective in fitted scale."""
+
+    def __init__(self, spectrum: Spectrum, known: dict, free, band, passes, bin_size: int):
+        self.spectrum = spectrum
+        known = resolve_known(known or {})
+        v0 = known.pop("v0", None)
+        if v0 is None:
+            v0 = spectrum.v0
+        elif spectrum.v0 is not None and not math.isclose(v0, spectrum.v0, rel_tol=1e-9):
+            raise ParameterError(f"known v0 = {v0!r} m/s contradicts the spectrum's own v0 = {spectrum.v0!r} m/s")
+        if v0 is None:
+            raise ParameterError("v0 is not known: the rolling speed maps frequency to wavenumber; give it as known "
+                                 "(e.g. --known v0=10)")
+        self.v0 = v0
+        self.load = known.pop("F_N", None)
+        self.known = {**known, "v0": v0, **({"F_N": self.load} if self.load is not None else {})}
+        self.free = check_free(default_free(spectrum.quantity, self.known) if free is None else free,
+                               spectrum.quantity, self.known)
+        if not self.free:
+            raise ParameterError("no free parameter: name at least one (free=[...] or --free)")
+        fixed = dict(NUISANCE_DEFAULTS)
+        if spectrum.dt is not None:  # a simulated spectrum: its line reaches the Nyquist wavenumber pi/dx
+            fixed["q_max"] = math.pi / (v0 * spectrum.dt)
+        if spectrum.quantity == "force":
+            fixed.update(m=1.0, zeta=0.0)  # the force does not see the wheel
+        fixed.update({k: v for k, v in known.items() if k in PARAMETERS})
+        needed = [n for n in PARAMETERS if n not in self.free and n not in fixed
+                  and not (n == "a" and self.load is not None)]
+        if needed:
+            raise ParameterError(f"{', '.join(needed)} neither known nor free: give each as known (e.g. --known "
+                                 f"{needed[0]}=...) or fit it (--free)")
+        self.fixed = {k: v for k, v in fixed.items() if k not in self.free}
+        self.band = _check_band(band, spectrum)
+        inside = (spectrum.omega >= self.band[0]) & (spectrum.omega <= self.band[1])
+        count = int(inside.sum())
+        if count == 0:
+            raise ParameterError(f"band {self.band[0]:.6g}..{self.band[1]:.6g} rad/s holds no bin of the spectrum, "
+                                 f"which covers {spectrum.omega[0]:.6g}..{spectrum.omega[-1]:.6g} rad/s")
+        if isinstance(bin_size, bool) or not isinstance(bin_size, (int, np.integer)) or bin_size < 1:
+            raise ParameterError(f"bin = {bin_size!r} is not allowed: it must be a positive integer")
+        usable = (count // bin_size) * bin_size
+        needed_bins = max(MIN_BINS, MIN_BINS_PER_PARAMETER * len(self.free))
+        if usable // bin_size < needed_bins:
+            raise ParameterError(f"band {self.band[0]:.6g}..{self.band[1]:.6g} rad/s holds {count} bins "
+                                 f"({usable // bin_size} after binning by {bin_size}); at least {needed_bins} are needed "
+                                 f"for {len(self.free)} free parameters")
+        index = np.flatnonzero(inside)[:usable]
+        self.omega_all = spectrum.omega[index]
+        self.bin_size = bin_size
+        self.omega = self.omega_all.reshape(-1, bin_size).mean(axis=1)
+        self.data = spectrum.psd[index].reshape(-1, bin_size).mean(axis=1)
+        self.passes_assumed = passes is None and spectrum.passes is None
+        self.passes = int(passes if passes is not None else (spectrum.passes or 1))
+        self.kappa = self.passes * bin_size
+        step = float(np.diff(spectrum.omega).min()) if spectrum.omega.size > 1 else None
+        self.setting = Setting(spectrum.quantity, v0, spectrum.dt, spectrum.window, spectrum.line_length,
+                               bin_width=spectrum.omega[1] - spectrum.omega[0] if spectrum.uniform else step)
+        positive = self.data > 0
+        self.offset = float(np.mean(np.log(self.data[positive]))) + 1.0 if positive.any() else 0.0
+        self.lower = np.array([_to_fitted(n, PARAMETERS[n][2]) for n in self.free])
+        self.upper = np.array([_to_fitted(n, PARAMETERS[n][3]) for n in self.free])
+
+    # ------------------------------------------------------------------ parameters
+    def params(self, theta) -> dict:
+        p = dict(self.fixed)
+        p.update({n: _from_fitted(n, t) for n, t in zip(self.free, theta)})
+        if self.load is not None:
+            p["a"] = float(contact_radius_from_load(self.load, p["E_star"], p["R"]))
+        return p
+
+    def theta(self, p: dict) -> np.ndarray:
+        return np.array([_to_fitted(n, p[n]) for n in self.free])
+
+    def model(self, p: dict) -> np.ndarray:
+        values = expected_psd(self.omega_all, p, self.setting)
+        return values.reshape(-1, self.bin_size).mean(axis=1)
+
+    def objective(self, theta) -> float:
+        """(log S + P/S) averaged over the bins, less a constant: -log L / (kappa n)."""
+        S = self.model(self.params(theta))
+        if not np.all(np.isfinite(S)) or np.any(S <= 0):
+            return _HUGE
+        return float(np.mean(np.log(S) + self.data / S)) - self.offset
+
+    def log_model_jacobian(self, theta) -> np.ndarray:
+        """d log S_j / d theta_k (n, p) by central differences."""
+        columns = []
+        for k in range(len(theta)):
+            h = 1e-5 * max(1.0, abs(theta[k]))
+            up, down = theta.copy(), theta.copy()
+            up[k] += h
+            down[k] -= h
+            columns.append((np.log(self.model(self.params(up))) - np.log(self.model(self.params(down)))) / (2 * h))
+        return np.column_stack(columns)
+
+
+def _to_fitted(name: str, value: float) -> float:
+    return math.log(value) if PARAMETERS[name][1] == "log" else float(value)
+
+
+def _from_fitted(name: str, value: float) -> float:
+    return math.exp(min(value, 700.0)) if PARAMETERS[name][1] == "log" else float(value)
+
+
+def _check_band(band, spectrum: Spectrum) -> tuple[float, float]:
+    if band is None:
+        top = spectrum.omega[-1] if spectrum.dt is None else min(spectrum.omega[-1], SIMULATED_BAND_TOP * math.pi / spectrum.dt)
+        bottom = spectrum.omega[0]
+        resonance = find_resonance(spectrum.omega, spectrum.psd) if spectrum.quantity == "accel" else None
+        if resonance is not None:
+            bottom = max(bottom, RESONANCE_MARGIN * resonance)
+        return float(bottom), float(top)
+    try:
+        lo, hi = (float(b) for b in band)
+    except (TypeError, ValueError):
+        raise ParameterError(f"band = {band!r} is not allowed: give (omega_lo, omega_hi) in rad/s") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
+        raise ParameterError(f"band = ({lo!r}, {hi!r}) rad/s is not allowed: it needs 0 <= omega_lo < omega_hi, finite")
+    return lo, hi
+
+
+def fit(spectrum: Spectrum, known: dict | None = None, free=None, band=None, passes: int | None = None,
+        bin: int = 1, start: dict | None = None, profile: bool = True, profile_points: int = 9) -> FitResult:
+    """Fit the forward model (:mod:`mdroll.inverse.model`) to ``spectrum`` by the Whittle likelihood.
+
+    Parameters
+    ----------
+    spectrum : :class:`~mdroll.inverse.spectrum.Spectrum` (see :func:`~mdroll.inverse.read_spectrum`).
+    known : ``{name: value}`` in SI units: any of :data:`~mdroll.inverse.model.PARAMETERS` and
+        ``v0`` (m/s), ``E`` (Pa) with ``nu``, ``F_N`` (N; a then follows from R and E*, eq 14-15).
+    free : names to fit (default :func:`~mdroll.inverse.model.default_free`).
+    band : (omega_lo, omega_hi) in rad/s (default: the whole spectrum).
+    passes : K, the number of averaged passes (default the spectrum's, else 1, marked assumed).
+    bin : average this many neighbouring bins first (nu = 2 K bin).
+    start : starting values for some free parameters (SI), instead of the data-driven ones.
+    profile : compute the profile likelihood of each free parameter (``profile_points`` each).
+
+    Returns a :class:`FitResult`. Bad input ends with a ParameterError naming it.
+    """
+    problem = _Problem(spectrum, known, free, band, passes, bin)
+    p0 = _starting_values(problem, start or {})
+    theta0 = np.clip(problem.theta(p0), problem.lower, problem.upper)
+    best = _minimize(problem, theta0)
+    best = _minimize(problem, best.x)  # L-BFGS-B restarted once: its first stop is often early
+    theta = best.x
+    f_hat = problem.objective(theta)
+    S = problem.model(problem.params(theta))
+    n, k = problem.data.size, len(problem.free)
+    kappa = problem.kappa
+
+    z = math.sqrt(kappa) * (problem.data / S - 1.0)
+    phi = float(np.sum(z * z) / max(n - k, 1))
+    zc = z - z.mean()
+    rho = [float(np.sum(zc[:-lag] * zc[lag:]) / np.sum(zc * zc)) for lag in (1, 2, 3) if n > lag + 1]
+    tau = max(0.25, 1.0 + 2.0 * sum(rho))
+    scale = phi * tau
+
+    jac = problem.log_model_jacobian(theta)
+    information = kappa * jac.T @ jac
+    raw_cov = np.linalg.pinv(information)
+    cov = scale * raw_cov
+    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    sd_raw = np.sqrt(np.maximum(np.diag(raw_cov), 0.0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(sd, sd)
+    estimates = problem.params(theta)
+    ci, ci_raw, stderr = {}, {}, {}
+    for i, name in enumerate(problem.free):
+        ci[name] = (_from_fitted(name, theta[i] - Z95 * sd[i]), _from_fitted(name, theta[i] + Z95 * sd[i]))
+        ci_raw[name] = (_from_fitted(name, theta[i] - Z95 * sd_raw[i]),
+                        _from_fitted(name, theta[i] + Z95 * sd_raw[i]))
+        stderr[name] = sd[i] * (estimates[name] if PARAMETERS[name][1] == "log" else 1.0)
+
+    positive = problem.data > 0
+    ratio = problem.data[positive] / S[positive]
+    deviance = float(2.0 * kappa * np.sum(ratio - np.log(ratio) - 1.0))
+    dof = max(n - k, 1)
+    gof = {"bins": n, "dof": dof, "deviance": deviance, "deviance_per_dof": deviance / dof,
+           "deviance_p": float(scipy.stats.chi2.sf(deviance, dof)), "phi": phi, "tau": tau, "rho": rho,
+           "ks_p": float(scipy.stats.kstest(problem.data / S, scipy.stats.gamma(kappa, scale=1.0 / kappa).cdf).pvalue),
+           "nll_per_bin": f_hat}
+
+    result = FitResult(
+        free=problem.free, estimates=estimates, known=problem.known, stderr=stderr, ci95=ci, ci95_fisher=ci_raw,
+        covariance=cov, correlation=corr, derived=_derived(problem, theta, cov), gof=gof, band=problem.band,
+        kappa=kappa, passes=problem.passes, passes_assumed=problem.passes_assumed, success=bool(best.success),
+        message=str(best.message), omega=problem.omega, data=problem.data, model=S, quantity=spectrum.quantity,
+        truth=_truth_of(spectrum),
+    )
+    if profile:
+        result.profiles = _profiles(problem, theta, f_hat, sd, scale, profile_points)
+        lower = min((min(v["delta"]) for v in result.profiles.values()), default=0.0)
+        result.gof["profile_found_lower_minimum"] = bool(lower < -0.5)
+    return result
+
+
+def _truth_of(spectrum: Spectrum) -> dict | None:
+    if not spectrum.truth:
+        return None
+    truth = dict(spectrum.truth)
+    truth["F_N_R"] = truth["F_N"] * truth["R"]
+    truth["k_c"] = 2.0 * truth["E_star"] * truth["a"]
+    return truth
+
+
+def _minimize(problem: _Problem, theta0):
+    bounds = list(zip(problem.lower, problem.upper))
+    return scipy.optimize.minimize(problem.objective, theta0, method="L-BFGS-B", bounds=bounds,
+                                   options={"maxiter": 2000, "ftol": 1e-15, "gtol": 1e-10, "maxfun": 20000})
+
+
+def _derived(problem: _Problem, theta, cov) -> dict:
+    """Derived quantities (:func:`mdroll.inverse.model.derived`, and lambda A on the line's grid
+    when known), with delta-method 95 % intervals (in log scale)."""
+    units = {"k_c": "N/m", "omega_0": "rad/s", "F_N_R": "N m", "F_N": "N", "level": "Pa^2 m^(2-2H)",
+             "lambda_A": "m^(2-2H)"}
+
+    def values(t):
+        p = problem.params(t)
+        out = derived(p)
+        out["lambda_A"] = lambda_A(p["h0"], p["H"], p["q_min"], p["q_max"], problem.setting.line_length)
+        if problem.spectrum.quantity == "force":
+            out.pop("omega_0")
+        if "R" not in problem.free and "R" not in problem.fixed:
+            out.pop("F_N")
+        return out
+
+    centre = values(theta)
+    gradients = {name: np.zeros(len(theta)) for name in centre}
+    for k in range(len(theta)):
+        h = 1e-6 * max(1.0, abs(theta[k]))
+        up, down = theta.copy(), theta.copy()
+        up[k] += h
+        down[k] -= h
+        vu, vd = values(up), values(down)
+        for name in centre:
+            gradients[name][k] = (math.log(vu[name]) - math.log(vd[name])) / (2 * h)
+    out = {}
+    for name, value in centre.items():
+        sd = math.sqrt(max(float(gradients[name] @ cov @ gradients[name]), 0.0))
+        sd = min(sd, 300.0)
+        out[name] = {"value": value, "ci95": [value * math.exp(-Z95 * sd), value * math.exp(Z95 * sd)],
+                     "unit": units[name]}
+    return out
+
+
+def _profiles(problem: _Problem, theta, f_hat, sd, scale, points) -> dict:
+    out = {}
+    kappa_n = 2.0 * problem.kappa * problem.data.size
+    for i, name in enumerate(problem.free):
+        width = sd[i] if np.isfinite(sd[i]) and sd[i] > 0 else 0.1
+        grid = theta[i] + np.linspace(-4.0, 4.0, points) * width
+        grid = np.clip(grid, problem.lower[i], problem.upper[i])
+        others = [j for j in range(len(theta)) if j != i]
+        deltas = []
+        for value in grid:
+            def restricted(rest, value=value):
+                full = theta.copy()
+                full[i] = value
+                full[others] = rest
+                return problem.objective(full)
+
+            if others:
+                res = scipy.optimize.minimize(restricted, theta[others], method="L-BFGS-B",
+                                              bounds=[(problem.lower[j], problem.upper[j]) for j in others],
+                                              options={"maxiter": 500, "ftol": 1e-15, "gtol": 1e-10})
+                f = res.fun
+            else:
+                f = restricted(np.zeros(0))
+            deltas.append(kappa_n * (f - f_hat) / scale)
+        values = [_from_fitted(name, g) for g in grid]
+        out[name] = {"values": values, "delta": deltas, "ci95": _profile_interval(values, deltas, i, theta, name)}
+    return out
+
+
+def _profile_interval(values, deltas, i, theta, name):
+    """Where the profile crosses chi^2_1(0.95) = 3.84 on each side of its minimum (linear
+    interpolation); None on a side where it stays below (an open interval)."""
+    d = np.asarray(deltas)
+    centre = int(np.argmin(d))
+    ends = []
+    for side in (range(centre, -1, -1), range(centre, len(d))):
+        side = list(side)
+        crossing = None
+        for a, b in zip(side[:-1], side[1:]):
+            if d[a] < CHI2_95 <= d[b]:
+                t = (CHI2_95 - d[a]) / (d[b] - d[a])
+                crossing = values[a] + t * (values[b] - values[a])
+                break
+        ends.append(crossing)
+    return ends
+
+
+# ---------------------------------------------------------------------------------- starting values
+def _starting_values(problem: _Problem, start: dict) -> dict:
+    """Data-driven starting values for the free parameters (``start`` overrides them)."""
+    unknown = set(start) - set(problem.free)
+    if unknown:
+        raise ParameterError(f"start names {sorted(unknown)}, which are not free ({', '.join(problem.free)})")
+    free = set(problem.free) - set(start)
+    p = dict(problem.fixed)
+    p.update({"H": 0.6, "q_min": problem.omega[0] / problem.v0, "a": 5e-3, "E_star": 1.15e11, "h0": 1e-6, "R": 0.5,
+              "m": 500.0, "zeta": 0.02, "noise": 0.0, "leak": 0.0, **problem.fixed})
+    p.update(start)
+    omega, data = problem.omega, problem.data
+    v0 = problem.v0
+    top = data[-max(1, data.size // 20):]
+
+    resonance = find_resonance(omega, data) if problem.spectrum.quantity == "accel" else None
+    # power law of the upper two thirds (log) of the band: P ~ omega^-(2H+3)
+    upper = omega >= omega[0] * (omega[-1] / omega[0]) ** (1.0 / 3.0)
+    upper &= data > 0
+    if resonance is not None:
+        upper &= omega > 3.0 * resonance
+    if upper.sum() >= 8:
+        x, y = np.log(omega[upper]), np.log(data[upper])
+        top_half = x >= 0.5 * (x[0] + x[-1])
+        slope = np.polyfit(x[top_half], y[top_half], 1)[0]
+        if "H" in free:
+            p["H"] = float(np.clip((-slope - 3.0) / 2.0, 0.05, 0.95))
+        if "a" in free:  # over six octaves from the bottom of that range, flattened by a cubic in log-log
+            trend = np.exp(np.polyval(np.polyfit(x, y, 3), x))
+            low = omega[upper] <= 64.0 * omega[upper][0]
+            p["a"] = _modulation_radius(omega[upper][low] / v0, data[upper][low] / trend[low], default=p["a"])
+    if "a_jitter" in free:  # the edge displacement h R / (2 a) of eq 47 at the RMS height
+        p["a_jitter"] = p["h0"] * p["R"] / (2.0 * p["a"])
+    if "noise" in free:
+        p["noise"] = 0.3 * float(np.median(top))
+    if "leak" in free:
+        p["leak"] = 0.01 * float(np.median(top)) * omega[-1] ** 2
+    if "E_star" in free and resonance is not None and problem.spectrum.quantity == "accel":
+        p["E_star"] = p["m"] * resonance**2 / (2.0 * p["a"])
+    level = "h0" if "h0" in free else ("E_star" if "E_star" in free and problem.spectrum.quantity == "force" else None)
+
+    def scaled(trial):  # the objective with the level profiled out analytically (S = s g)
+        g = problem.model(_with_load(problem, trial))
+        if not np.all(np.isfinite(g)) or np.any(g <= 0):
+            return _HUGE, 1.0
+        s = float(np.mean(data / g))
+        return float(np.mean(np.log(s * g) + data / (s * g))), s
+
+    if "E_star" in free and resonance is None and problem.spectrum.quantity == "accel":
+        candidates = np.geomspace(1e9, 1e13, 41)
+        p["E_star"] = float(candidates[int(np.argmin([scaled(dict(p, E_star=float(e)))[0] for e in candidates]))])
+    if "q_min" in free:
+        candidates = np.geomspace(omega[0] / v0, omega[-1] / v0 / 3.0, 48)
+        scores = [scaled(dict(p, q_min=float(q)))[0] for q in candidates]
+        p["q_min"] = float(candidates[int(np.argmin(scores))])
+    if "a" in free:
+        # a fine scan around the start, in steps of a quarter of the phase tolerance pi / (8 q_top)
+        step = math.pi / (32.0 * omega[-1] / v0)
+        trials = [a for a in p["a"] + step * np.arange(-16, 17) if a > 0]
+        p["a"] = float(trials[int(np.argmin([scaled(dict(p, a=float(a)))[0] for a in trials]))])
+    if level is not None:
+        s = scaled(p)[1]
+        p[level] *= math.sqrt(s)
+    return _with_load(problem, p)
+
+
+def _with_load(problem: _Problem, p: dict) -> dict:
+    if problem.load is not None:
+        p = dict(p, a=float(contact_radius_from_load(problem.load, p["E_star"], p["R"])))
+    return p
+
+
+def _modulation_radius(q, flattened, default):
+    """a from the modulation of eq 40: ``flattened - 1 ~ -cos(2 q a)``, whose frequency in q is
+    a / pi cycles per rad/m: the peak of the periodogram of the flattened spectrum (resampled on
+    a uniform q grid, Hann taper, 8x zero padding), eq 26."""
+    if q.size < 16:
+        return default
+    size = min(q.size, 2**18)
+    grid = np.linspace(q[0], q[-1], size)
+    r = np.interp(grid, q, flattened)
+    r = (r - r.mean()) * np.hanning(size)
+    spectrum = np.abs(np.fft.rfft(r, 8 * size)) ** 2
+    cycles = np.fft.rfftfreq(8 * size, grid[1] - grid[0])
+    radius = math.pi * cycles
+    usable = (cycles > 4.0 / (q[-1] - q[0])) & (radius > 1e-5)
+    if not usable.any():
+        return default
+    return float(radius[usable][np.argmax(spectrum[usable])])
+
+
+def find_resonance(omega, data, sharpness: float = 5.0):
+    """The contact resonance of an acceleration spectrum: the bin of the lower third (log) of
+    ``omega`` whose PSD exceeds the median of its +-10 neighbours most, if by ``sharpness`` times
+    (rad/s), else None."""
+    lower = np.flatnonzero(omega <= omega[0] * (omega[-1] / omega[0]) ** (1.0 / 3.0))
+    if lower.size < 3:
+        return None
+    ratio = np.array([data[k] / max(np.median(data[max(0, k - 10):k + 11]), 1e-300) for k in lower])
+    peak = int(lower[int(np.argmax(ratio))])
+    return float(omega[peak]) if ratio.max() >= sharpness and 0 < peak < data.size - 1 else None

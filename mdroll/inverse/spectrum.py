@@ -1,0 +1,294 @@
+"""Averaged spectra to invert, and their readers (mdroll ``spectra.npz``, CSV and NPZ tables).
+
+Every spectrum is held in one canonical form: angular frequency omega (rad/s, positive,
+strictly increasing) and the **two-sided PSD per rad/s** of physics.md sections 3 and 6,
+``<x^2> = integral over all omega (both signs) of C(omega) d omega``, with
+``C(omega) = C(q) / v0`` at ``omega = q v0``. Units: (m/s^2)^2 s/rad for the acceleration,
+N^2 s/rad for the force. Conversions from a table's declared convention:
+
+    omega = 2 pi f                         (frequency in Hz)
+    C_per_rad/s = C_per_Hz / (2 pi)        (since integral C df = integral C d omega, d omega = 2 pi df)
+    C_two_sided = G_one_sided / 2          (the one-sided G carries both signs' power on f > 0)
+
+and the same factors for a column of standard errors.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..params import ParameterError, Params
+from ..physics import TWO_PI
+
+QUANTITIES = ("accel", "force")
+FREQUENCY_UNITS = ("Hz", "rad/s")
+SIDES = ("one", "two")
+DENSITIES = ("Hz", "rad/s")
+
+
+def _choice(name: str, value, allowed) -> str:
+    if value not in allowed:
+        raise ParameterError(f"{name} = {value!r} is not allowed: use one of {', '.join(map(repr, allowed))}")
+    return value
+
+
+@dataclass(frozen=True)
+class Spectrum:
+    """An averaged PSD to invert, in the canonical form of this module.
+
+    Attributes
+    ----------
+    omega : (n,) angular frequencies, rad/s, positive and strictly increasing.
+    psd : (n,) two-sided PSD per rad/s, finite and >= 0: (m/s^2)^2 s/rad (``quantity="accel"``)
+        or N^2 s/rad (``"force"``).
+    quantity : "accel" or "force".
+    passes : number K of averaged passes (realizations), or None when unknown.
+    stderr : (n,) standard errors of ``psd`` (same units), or None.
+    v0 : rolling speed (m/s) when the source states it (an mdroll spectrum), else None.
+    dt : sample interval of the series (s) when known: the wheel's response is then the
+        semi-implicit Euler one of the simulation (section 5.1), else the continuous one.
+    window : True when the series had the Hann window of section 6 (the expected periodogram
+        is then the spectrum smoothed by the 3-bin stencil [1/6, 2/3, 1/6]).
+    line_length : length L of the generated rough line (m) when known (mdroll): eq 50 is then
+        normalized on its grid 2 pi k / L, else in the continuum limit.
+    truth : the generating parameters of an mdroll spectrum (a dict), kept only to compare
+        estimates with; the fit never reads it.
+    source : where it came from, for the record.
+    """
+
+    omega: np.ndarray
+    psd: np.ndarray
+    quantity: str = "accel"
+    passes: int | None = None
+    stderr: np.ndarray | None = None
+    v0: float | None = None
+    dt: float | None = None
+    window: bool = False
+    line_length: float | None = None
+    truth: dict | None = None
+    source: str = ""
+    simulation: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        _choice("quantity", self.quantity, QUANTITIES)
+        omega = np.asarray(self.omega, dtype=np.float64)
+        psd = np.asarray(self.psd, dtype=np.float64)
+        object.__setattr__(self, "omega", omega)
+        object.__setattr__(self, "psd", psd)
+        if omega.ndim != 1 or psd.shape != omega.shape:
+            raise ParameterError(f"frequency and PSD must be 1-D of the same length, got shapes {omega.shape} and {psd.shape}")
+        if omega.size == 0:
+            raise ParameterError("the spectrum has no rows")
+        _check_frequencies(omega)
+        _check_values("psd", psd, omega)
+        if self.stderr is not None:
+            err = np.asarray(self.stderr, dtype=np.float64)
+            if err.shape != omega.shape:
+                raise ParameterError(f"stderr must have the PSD's shape {omega.shape}, got {err.shape}")
+            _check_values("stderr", err, omega)
+            object.__setattr__(self, "stderr", err)
+        if self.passes is not None and (isinstance(self.passes, bool) or not isinstance(self.passes, (int, np.integer))
+                                        or self.passes < 1):
+            raise ParameterError(f"passes = {self.passes!r} is not allowed: the number of averaged passes must be a "
+                                 "positive integer")
+        for name in ("v0", "dt", "line_length"):
+            value = getattr(self, name)
+            if value is not None and not (math.isfinite(value) and value > 0):
+                raise ParameterError(f"{name} = {value!r} is not allowed: it must be positive and finite")
+        if self.window and not self.uniform:
+            raise ParameterError("window = True needs a uniform frequency grid omega_k = k d omega (the Hann stencil "
+                                 "acts between neighbouring bins)")
+
+    @property
+    def uniform(self) -> bool:
+        """True when omega_k = k d omega for integers k (a DFT grid)."""
+        if self.omega.size < 2:
+            return False
+        step = self.omega[1] - self.omega[0]
+        k = self.omega / step
+        return bool(np.allclose(k, np.rint(k), atol=1e-6) and np.allclose(np.diff(self.omega), step, rtol=1e-6))
+
+    def with_psd(self, psd, stderr=None) -> "Spectrum":
+        """The same spectrum with other PSD values (a bootstrap or noisy copy)."""
+        return replace(self, psd=psd, stderr=stderr)
+
+
+def _check_frequencies(omega: np.ndarray) -> None:
+    bad = ~np.isfinite(omega)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ParameterError(f"frequency at row {i} is {omega[i]!r}: frequencies must be finite")
+    if (omega <= 0).any():
+        i = int(np.argmax(omega <= 0))
+        raise ParameterError(f"frequency at row {i} is {omega[i]:.6g} rad/s: frequencies must be positive "
+                             "(a leading zero-frequency row is dropped by the readers)")
+    steps = np.diff(omega)
+    if (steps <= 0).any():
+        i = int(np.argmax(steps <= 0)) + 1
+        raise ParameterError(f"frequencies are not strictly increasing at row {i} ({omega[i]:.6g} rad/s after "
+                             f"{omega[i - 1]:.6g} rad/s)")
+
+
+def _check_values(name: str, values: np.ndarray, omega: np.ndarray) -> None:
+    bad = ~np.isfinite(values) | (values < 0)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ParameterError(f"{name} at row {i} (omega = {omega[i]:.6g} rad/s) is {values[i]!r}: a {name} must be "
+                             "finite and >= 0")
+
+
+def from_result(result, quantity: str = "accel", window: bool = False) -> Spectrum:
+    """The spectrum of an :class:`mdroll.EnsembleResult` (two-sided per rad/m on q, section 6),
+    as two-sided per rad/s on omega = q v0: ``C(omega) = C(q) / v0``. The q = 0 bin is dropped.
+
+    ``window``: whether the run used the Hann window (its ``spectra.npz`` does not record it).
+    """
+    _choice("quantity", quantity, QUANTITIES)
+    p: Params = result.params
+    psd = getattr(result, f"{quantity}_psd")
+    err = getattr(result, f"{quantity}_psd_stderr")
+    keep = result.q > 0
+    return Spectrum(omega=result.omega[keep], psd=psd[keep] / p.v0, quantity=quantity, passes=int(result.n_real),
+                    stderr=err[keep] / p.v0 if result.n_real > 1 else None, v0=p.v0, dt=p.dt, window=bool(window),
+                    line_length=p.length, truth=_truth(p), source="mdroll ensemble",
+                    simulation={"boundary": result.boundary, "mode": result.mode, "algorithm": result.algorithm,
+                                "seed": result.seed, "L": p.L, "dx": p.dx, "q_max": p.q_max, "E": p.E, "nu": p.nu})
+
+
+def _truth(p: Params) -> dict:
+    return {"H": p.H, "q_min": p.q_min, "q_max": p.q_max, "a": p.a, "E_star": p.E_star, "h0": p.h0, "R": p.R,
+            "m": p.m, "v0": p.v0, "F_N": p.F_N, "lambda_A": p.lambda_A, "omega_0": p.omega_0}
+
+
+def read_spectrum(path, quantity: str | None = None, window: bool = False, frequency_unit: str | None = None,
+                  sided: str | None = None, density: str | None = None, passes: int | None = None) -> Spectrum:
+    """Read an mdroll ``spectra.npz`` (it has ``q`` and ``meta``) or a table (:func:`read_table`).
+
+    For an mdroll file ``quantity`` (default "accel") picks the acceleration or force PSD, and
+    ``window`` says whether the run used the Hann window; the table options must not be given.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ParameterError(f"spectrum file {str(path)!r} does not exist")
+    if path.suffix == ".npz":
+        with np.load(path) as data:
+            is_mdroll = "meta" in data.files and "q" in data.files
+        if is_mdroll:
+            given = [n for n, v in (("frequency_unit", frequency_unit), ("sided", sided), ("density", density),
+                                    ("passes", passes)) if v is not None]
+            if given:
+                raise ParameterError(f"{path} is an mdroll spectra.npz, whose units are known: {', '.join(given)} "
+                                     "must not be given")
+            from ..ensemble.result import EnsembleResult
+
+            return from_result(EnsembleResult.load(path), quantity or "accel", window)
+    return read_table(path, quantity=quantity or "accel", frequency_unit=frequency_unit, sided=sided, density=density,
+                      passes=passes, window=window)
+
+
+def read_table(path, quantity: str = "accel", frequency_unit: str | None = None, sided: str | None = None,
+               density: str | None = None, passes: int | None = None, window: bool = False) -> Spectrum:
+    """A table of frequency and PSD (optionally standard errors): CSV or NPZ.
+
+    CSV: columns ``frequency, psd[, stderr]`` separated by commas, an optional header line, ``#``
+    comments. NPZ: arrays ``frequency``, ``psd``, optional ``stderr``, and optionally the strings
+    ``frequency_unit``, ``sided``, ``density``, ``quantity`` and the integer ``passes`` (what the
+    arguments do not give). The convention must be declared, there is no default:
+    ``frequency_unit`` "Hz" or "rad/s", ``sided`` "one" or "two", ``density`` "Hz" (per Hz) or
+    "rad/s" (per rad/s); the PSD in SI units ((m/s^2)^2 or N^2 per unit frequency). A leading
+    zero-frequency row is dropped. Converted as in the module docstring.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ParameterError(f"spectrum file {str(path)!r} does not exist")
+    declared: dict = {}
+    if path.suffix == ".npz":
+        with np.load(path) as data:
+            missing = [k for k in ("frequency", "psd") if k not in data.files]
+            if missing:
+                raise ParameterError(f"{path}: the table lacks the array(s) {missing} (it needs frequency and psd)")
+            columns = [data["frequency"], data["psd"]] + ([data["stderr"]] if "stderr" in data.files else [])
+            for key in ("frequency_unit", "sided", "density", "quantity", "passes"):
+                if key in data.files:
+                    declared[key] = data[key].item()
+    elif path.suffix in (".csv", ".txt", ".tsv"):
+        columns = _read_csv(path)
+    else:
+        raise ParameterError(f"{path}: unknown table format {path.suffix!r}; use .csv or .npz")
+    frequency_unit = frequency_unit or declared.get("frequency_unit")
+    sided = sided or declared.get("sided")
+    density = density or declared.get("density")
+    quantity = declared.get("quantity", quantity) if quantity is None else quantity
+    passes = passes if passes is not None else declared.get("passes")
+    for name, value, allowed in (("frequency_unit", frequency_unit, FREQUENCY_UNITS), ("sided", sided, SIDES),
+                                 ("density", density, DENSITIES)):
+        if value is None:
+            raise ParameterError(f"{path}: {name} is not declared; give one of {', '.join(map(repr, allowed))}")
+        _choice(name, value, allowed)
+    return table_spectrum(*columns[:2], stderr=columns[2] if len(columns) > 2 else None, quantity=quantity,
+                          frequency_unit=frequency_unit, sided=sided, density=density,
+                          passes=None if passes is None else int(passes), window=window, source=str(path))
+
+
+def _read_csv(path: Path) -> list[np.ndarray]:
+    rows = []
+    for number, line in enumerate(path.read_text().splitlines(), start=1):
+        text = line.split("#", 1)[0].strip()
+        if not text:
+            continue
+        cells = [c.strip() for c in text.replace("\t", ",").split(",")]
+        try:
+            values = [float(c) for c in cells]
+        except ValueError:
+            if not rows:  # a header line
+                continue
+            raise ParameterError(f"{path}, line {number}: {text!r} is not a row of numbers") from None
+        if len(values) not in (2, 3) or (rows and len(values) != len(rows[0])):
+            raise ParameterError(f"{path}, line {number}: expected 2 or 3 columns (frequency, psd[, stderr]) in every "
+                                 f"row, got {len(values)}")
+        rows.append(values)
+    if not rows:
+        raise ParameterError(f"{path}: the table has no rows")
+    return list(np.array(rows, dtype=np.float64).T)
+
+
+def table_spectrum(frequency, psd, stderr=None, quantity: str = "accel", frequency_unit: str = "Hz",
+                   sided: str = "one", density: str = "Hz", passes: int | None = None, window: bool = False,
+                   source: str = "table") -> Spectrum:
+    """A :class:`Spectrum` from arrays in a declared convention (see the module docstring)."""
+    _choice("frequency_unit", frequency_unit, FREQUENCY_UNITS)
+    _choice("sided", sided, SIDES)
+    _choice("density", density, DENSITIES)
+    frequency = np.asarray(frequency, dtype=np.float64)
+    omega = frequency * (TWO_PI if frequency_unit == "Hz" else 1.0)
+    factor = (1.0 / TWO_PI if density == "Hz" else 1.0) * (0.5 if sided == "one" else 1.0)
+    psd = np.asarray(psd, dtype=np.float64) * factor
+    err = None if stderr is None else np.asarray(stderr, dtype=np.float64) * factor
+    if omega.size and omega[0] == 0.0:
+        omega, psd, err = omega[1:], psd[1:], None if err is None else err[1:]
+    return Spectrum(omega=omega, psd=psd, quantity=quantity, passes=passes, stderr=err, window=window, source=source)
+
+
+def write_table(spectrum: Spectrum, path, frequency_unit: str = "Hz", sided: str = "one", density: str = "Hz") -> Path:
+    """Write ``spectrum`` as a CSV table in a declared convention (the inverse of :func:`read_table`),
+    atomically; the convention goes in a comment line."""
+    from ..files import atomic_write
+
+    _choice("frequency_unit", frequency_unit, FREQUENCY_UNITS)
+    _choice("sided", sided, SIDES)
+    _choice("density", density, DENSITIES)
+    factor = (TWO_PI if density == "Hz" else 1.0) * (2.0 if sided == "one" else 1.0)
+    frequency = spectrum.omega / (TWO_PI if frequency_unit == "Hz" else 1.0)
+    columns = [frequency, spectrum.psd * factor] + ([spectrum.stderr * factor] if spectrum.stderr is not None else [])
+    header = json.dumps({"quantity": spectrum.quantity, "frequency_unit": frequency_unit, "sided": sided,
+                         "density": density, "passes": spectrum.passes})
+    names = "frequency,psd" + (",stderr" if spectrum.stderr is not None else "")
+    path = Path(path)
+    with atomic_write(path, "w") as file:
+        np.savetxt(file, np.column_stack(columns), delimiter=",", header=f"{header}\n{names}", fmt="%.17g")
+    return path
