@@ -73,7 +73,7 @@ def test_bad_units_and_declarations(tmp_path):
 def _synthetic(n=400, passes=50, seed=0, **changes):
     """A force periodogram of the model itself: each bin its mean times chi^2_{2K} / 2K."""
     truth = {"H": 0.7, "q_min": 1256.6, "q_max": math.inf, "a": 5e-3, "E_star": 1.154e11, "h0": 5e-7, "R": 0.5, "m": 1.0,
-             "zeta": 0.0, "noise": 0.0, "leak": 0.0, "a_jitter": 0.0, **changes}
+             "zeta": 0.0, "noise": 0.0, "leak": 0.0, "a_jitter": 0.0, "low_scale": 1.0, **changes}
     omega = 10.0 * 80.0 * np.arange(1, n + 1)  # q from 80 to 32000 rad/m at v0 = 10
     mean = expected_psd(omega, truth, Setting("force", 10.0, bin_width=800.0))
     rng = np.random.default_rng(seed)
@@ -158,3 +158,23 @@ def test_cli_invert_bad_input_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "not strictly increasing" in err
     assert main(["invert", str(path), "--band", "a:b"]) == 2
+
+
+def test_profiles_bracket_the_estimate_and_expose_a_degeneracy():
+    """Profiles of a synthetic force fit: minimum at the estimate, crossing 3.84 on both sides for
+    H near the Fisher interval; R (which only the low band, eq 48, sees) fitted on a band above
+    q_min: its profile stays flat, and the Fisher information names it unidentified."""
+    s, truth = _synthetic(seed=3)
+    r = fit(s, known={"E_star": truth["E_star"], "R": 0.5, "a_jitter": 0.0, "q_min": truth["q_min"]},
+            free=["H", "a", "h0"], start={"H": 0.68, "a": 5.0e-3, "h0": 4.5e-7}, profile_points=7)
+    prof = r.profiles["H"]
+    assert min(prof["delta"]) == pytest.approx(0.0, abs=0.05)
+    lo, hi = prof["ci95"]
+    assert lo < r.estimates["H"] < hi
+    # the Fisher and profile intervals agree for a well-identified parameter
+    assert lo == pytest.approx(r.ci95["H"][0], abs=0.3 * (r.ci95["H"][1] - r.ci95["H"][0]))
+    flat = fit(s, known={"E_star": truth["E_star"], "a_jitter": 0.0, "q_min": truth["q_min"], "H": truth["H"],
+                         "a": truth["a"]}, free=["h0", "R"], start={"h0": 4.5e-7, "R": 0.3}, band=(13000.0, 320000.0),
+               profile_points=5)
+    assert flat.profiles["R"]["ci95"] == [None, None]  # above q_min nothing depends on R
+    assert flat.gof["unidentified"] == ["R"] and flat.ci95["R"] == (0.0, math.inf)

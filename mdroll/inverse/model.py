@@ -24,9 +24,7 @@ Expected two-sided PSD per rad/s at omega (rad/s), q = omega / v0 (rad/m):
   likelihood is continuous in q_min and q_max; the discrete eq 50 uses the same fractions on the
   line's grid.
 * ``C_{h^2}(q) = 2 integral C_1D(q') C_1D(q - q') dq'`` (Isserlis' factor 2; physics.md section 7,
-  eq 48) by FFT convolution on a grid of q_min / 32 up to 64 q_min, and beyond that
-  ``4 h0^2 C_1D(q)`` (its large-q limit) matched at 64 q_min. It matters below q_min and in the
-  zeros of sin^2(q a), where eq 40 alone vanishes.
+  eq 48) by FFT convolution (:func:`square_line_psd`).
 * ``w~ = 2 sin(omega dt / 2) / dt`` when the sample interval dt is known (the simulation's
   semi-implicit Euler wheel: |G|^2 of mdroll.kernels.spectra.ResponseBin is exactly T at
   zeta = 0), else omega. ``zeta`` is a damping ratio (measured wheels are damped; in a simulated
@@ -59,6 +57,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.signal
+import scipy.special
 
 from ..params import ParameterError
 from .. import physics
@@ -75,6 +74,7 @@ PARAMETERS = {
     "R": ("m", "log", 1e-4, 1e3),
     "m": ("kg", "log", 1e-3, 1e7),
     "a_jitter": ("m", "log", 1e-9, 1e-2),
+    "low_scale": ("-", "log", 1e-3, 1e3),
     "zeta": ("-", "log", 1e-7, 1.0),
     "noise": ("PSD", "log", 1e-300, 1e300),
     "leak": ("PSD (rad/s)^2", "log", 1e-300, 1e300),
@@ -82,11 +82,10 @@ PARAMETERS = {
 #: Inputs that can only be known, never fitted: they set model parameters (see :func:`resolve_known`).
 KNOWN_ONLY = ("v0", "E", "nu", "F_N")
 #: Values of the nuisance parameters when they are neither fitted nor given.
-NUISANCE_DEFAULTS = {"a_jitter": 0.0, "zeta": 0.0, "noise": 0.0, "leak": 0.0, "q_max": math.inf}
+NUISANCE_DEFAULTS = {"a_jitter": 0.0, "low_scale": 1.0, "zeta": 0.0, "noise": 0.0, "leak": 0.0, "q_max": math.inf}
 
 _SQUARE_GRID_PER_QMIN = 32
-_DISCRETE_SUM_EXTENT = 4096.0
-_SQUARE_GRID_EXTENT = 64.0
+_SQUARE_GRID_EXTENT = 8.0
 
 
 def resolve_known(known: dict) -> dict:
@@ -141,28 +140,35 @@ def band_weights(q, low, high, dq):
 
 def lambda_A(h0, H, q_min, q_max, line_length=None):
     """Eq 50: lambda A (m^(2-2H)) that gives the line the RMS height h0 (m). With ``line_length``
-    L (m): the discrete sum on the grid 2 pi k / L with the fractional end weights of
-    :func:`band_weights` (equal to :func:`mdroll.physics.lambda_A_discrete` when the cutoffs lie
-    on the grid); without: the continuum ``H h0^2 / (q_min^(-2H) - q_max^(-2H))``."""
+    L (m): the discrete sum ``sum_k w_k q_k^(-2H-1)`` on the grid q_k = k dq, dq = 2 pi / L, with
+    the fractional end weights w_k of :func:`band_weights` (so it equals
+    :func:`mdroll.physics.lambda_A_discrete` when the cutoffs lie on the grid), summed in closed
+    form by Hurwitz zeta functions ``sum_{k >= n} k^-s = zeta(s, n)``; without: the continuum
+    ``H h0^2 / (q_min^(-2H) - q_max^(-2H))``."""
     if line_length is None:
         tail = 0.0 if not math.isfinite(q_max) else q_max ** (-2.0 * H)
         return H * h0**2 / (q_min ** (-2.0 * H) - tail)
     dq = physics.TWO_PI / line_length
-    top = min(q_max, _DISCRETE_SUM_EXTENT * q_min)
-    k = np.arange(max(1, math.floor(q_min / dq)), math.ceil(top / dq) + 1)
-    q = k * dq
-    total = float(np.sum(band_weights(q, q_min, top, dq) * q ** (-2.0 * H - 1.0)))
-    if top < q_max:  # the rest of the grid's sum as its integral (relative weight below 1e-4 there)
-        tail = top ** (-2.0 * H) - (q_max ** (-2.0 * H) if math.isfinite(q_max) else 0.0)
-        total += tail / (2.0 * H * dq)
+    s = 2.0 * H + 1.0
+    low = q_min / dq
+    first = max(1, math.ceil(low - 1e-9))
+    total = float(scipy.special.zeta(s, first))
+    if first - 1 >= 1 and first - low < 1.0:  # the bin below, partly inside
+        total += (first - low) * (first - 1) ** -s
+    if math.isfinite(q_max):
+        high = q_max / dq
+        last = math.floor(high + 1e-9)
+        total -= float(scipy.special.zeta(s, last + 1))
+        total += (high - last) * (last + 1) ** -s if high - last > 1e-9 else 0.0
+    total *= dq**-s
     return h0**2 / (2.0 * dq * total) if total > 0 else math.inf
 
 
-def square_line_psd(q, lam_A, H, q_min, q_max, h0):
-    """``C_{h^2}(q) = 2 integral C_1D(q') C_1D(q - q') dq'`` (m^5 per rad/m... i.e. m^2 squared
-    per rad/m), the PSD of h^2 for a Gaussian line (Isserlis; physics.md section 7): an FFT
-    convolution on a grid of q_min/32 up to 64 q_min (and q_max), and ``4 h0^2 C_1D(q)`` (its
-    large-q limit) matched at the top of that grid beyond it. ``q`` (rad/m) >= 0."""
+def square_line_psd(q, lam_A, H, q_min, q_max):
+    """``C_{h^2}(q) = 2 integral C_1D(q') C_1D(q - q') dq'`` (m^5), the PSD of h^2 for a Gaussian
+    line (Isserlis; physics.md section 7), for 0 <= q <= 8 q_min (0 beyond): an FFT convolution
+    of C_1D on a grid of q_min / 32 up to 8 q_min (and q_max); the pairs it leaves out weigh
+    about 8^-(4H+1) (1 % at H = 0.3)."""
     q = np.asarray(q, dtype=np.float64)
     step = q_min / _SQUARE_GRID_PER_QMIN
     top = min(q_max, _SQUARE_GRID_EXTENT * q_min)
@@ -170,15 +176,7 @@ def square_line_psd(q, lam_A, H, q_min, q_max, h0):
     line = physics.roughness_psd(grid, lam_A, H, q_min, top)
     full = 2.0 * step * scipy.signal.fftconvolve(line, line, mode="same")
     positive = grid >= 0
-    grid_q, grid_c = grid[positive], full[positive]
-    out = np.interp(q, grid_q, grid_c)
-    beyond = q > grid_q[-1] - step
-    if beyond.any():
-        limit = 4.0 * h0**2 * lam_A
-        match = grid_c[-2] / (limit * grid_q[-2] ** (-2.0 * H - 1.0)) if grid_c[-2] > 0 else 1.0
-        inside = q[beyond] <= q_max
-        out[beyond] = np.where(inside, match * limit * q[beyond] ** (-2.0 * H - 1.0), 0.0)
-    return out
+    return np.interp(q, grid[positive], full[positive], right=0.0)
 
 
 @dataclass(frozen=True)
@@ -233,8 +231,11 @@ def _unwindowed(omega, p: dict, setting: Setting) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         linear = np.where(q > 0, (2.0 * p["E_star"] / q) ** 2 * lam * q ** (-2.0 * p["H"] - 1.0) * 0.5 * (1.0 - fill), 0.0)
     c = physics.edge_coefficient(p["E_star"], p["R"], p["a"])
-    quadratic = 4.0 * c * c * 0.5 * (1.0 + fill) * square_line_psd(q, lam, p["H"], p["q_min"], p["q_max"], p["h0"])
-    psd = (weights * linear + (1.0 - weights) * quadratic) / v0
+    below = weights < 1.0  # the quadratic term is used below q_min only
+    quadratic = np.zeros_like(q)
+    quadratic[below] = (p["low_scale"] * 4.0 * c * c * 0.5 * (1.0 + fill[below])
+                        * square_line_psd(q[below], lam, p["H"], p["q_min"], p["q_max"]) * (1.0 - weights[below]))
+    psd = (weights * linear + quadratic) / v0
     w = effective_frequency(omega, setting.dt)
     if setting.quantity == "accel":
         psd = psd * wheel_transfer(omega, physics.contact_stiffness(p["E_star"], p["a"]), p["m"], p["zeta"], setting.dt)
