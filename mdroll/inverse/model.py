@@ -139,7 +139,8 @@ def band_weights(q, low, high, dq):
 
 
 def lambda_A(h0, H, q_min, q_max, line_length=None):
-    """Eq 50: lambda A (m^(2-2H)) that gives the line the RMS height h0 (m). With ``line_length``
+    """The prefactor lambda A of eq 50 (m^(2-2H)) that gives the line the RMS height h0 (m), in the
+    form the fit needs (continuous in the cutoffs, O(1) per call). With ``line_length``
     L (m): the discrete sum ``sum_k w_k q_k^(-2H-1)`` on the grid q_k = k dq, dq = 2 pi / L, with
     the fractional end weights w_k of :func:`band_weights` (so it equals
     :func:`mdroll.physics.lambda_A_discrete` when the cutoffs lie on the grid), summed in closed
