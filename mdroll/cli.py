@@ -212,7 +212,7 @@ def output(p) -> None:
 LOCK = ".mdroll.lock"
 #: What ``run`` and ``merge`` write; ``--force`` removes the old ones first, so that a finished
 #: run's files never mix with a new run's.
-RUN_OUTPUTS = ("spectra.npz", "summary.json", "accel_psd.png", "force_psd.png")
+RUN_OUTPUTS = ("spectra.npz", "summary.json", "accel_psd.png", "force_psd.png", "bands.csv", "bands.png")
 _held_locks: list[int] = []
 
 

@@ -565,8 +565,8 @@ def test_closed_pipe_ends_quietly(monkeypatch, capsys):
 def test_a_non_finite_force_ends_the_cli_in_one_line(tmp_path, monkeypatch, capsys):
     real = pipeline.rough_lines
 
-    def poisoned(params, seed, idx, device):
-        lines = np.array(real(params, seed, idx, device=device))
+    def poisoned(params, seed, idx, device, **options):
+        lines = np.array(real(params, seed, idx, device=device, **options))
         lines[0, 10] = np.nan
         return lines
 
