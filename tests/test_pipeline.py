@@ -242,7 +242,8 @@ def test_resumed_run_continues_on_the_device(device, tmp_path, monkeypatch):
     class Stop(Exception):
         pass
 
-    full = run_ensemble(P, seed=6, device=device, progress=False, batch=2)
+    # the uninterrupted run with a checkpoint too: its batches are then planned the same way
+    full = run_ensemble(P, seed=6, device=device, progress=False, batch=2, checkpoint=tmp_path / "full.npz")
     original = pipeline.psd_moments_of_batch
     calls = []
 
