@@ -14,6 +14,7 @@ import json
 import math
 import os
 import secrets
+import signal
 import sys
 import tempfile
 import tomllib
@@ -663,7 +664,19 @@ def cmd_invert(args) -> int:
     return 0
 
 
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM (a scheduler stopping the job), raised so that it unwinds like Ctrl-C: temporary
+    files are removed, the lock released, the last checkpoint kept."""
+
+
+def _raise_terminated(signum, frame):
+    raise _Terminated
+
+
 def main(argv=None) -> int:
+    previous = None
+    with contextlib.suppress(ValueError):  # only the main thread may set a handler
+        previous = signal.signal(signal.SIGTERM, _raise_terminated)
     try:
         args = _parser().parse_args(argv)
         code = {"params": cmd_params, "run": cmd_run, "validate": cmd_validate, "bench": cmd_bench,
@@ -688,8 +701,13 @@ def main(argv=None) -> int:
         with contextlib.suppress(OSError, ValueError, AttributeError):
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141  # 128 + SIGPIPE, as a tool killed by the closed pipe reports
+    except _Terminated:
+        print("mdroll: terminated; continue with mdroll run --resume DIR", file=sys.stderr)
+        return 143  # 128 + SIGTERM
     except KeyboardInterrupt:
         print("mdroll: interrupted", file=sys.stderr)
         return 130
     finally:
         _release_locks()
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)

@@ -572,3 +572,18 @@ def test_a_non_finite_force_ends_the_cli_in_one_line(tmp_path, monkeypatch, caps
 
     monkeypatch.setattr(pipeline, "rough_lines", poisoned)
     _refused(capsys, "force is not finite in realization 0", "run", *TINY, "--realizations", 1, "--out", tmp_path / "r")
+
+
+def test_sigterm_unwinds_keeping_the_checkpoint(tmp_path):
+    """A scheduler's SIGTERM: one line, exit 143, the checkpoint kept, no temporary file left."""
+    out = tmp_path / "run"
+    proc = subprocess.Popen([sys.executable, "-m", "mdroll", "run", *TINY, "--realizations", "100000", "--batch", "1",
+                             "--out", str(out)], cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while time.time() < deadline and not (out / CHECKPOINT).exists():
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGTERM)
+    err = [line for line in proc.communicate(timeout=60)[1].splitlines() if "CUDA driver" not in line]
+    assert proc.returncode == 143 and err == ["mdroll: terminated; continue with mdroll run --resume DIR"], err
+    assert read_checkpoint(out / CHECKPOINT)[0]["done"] >= 1
+    assert sorted(p.name for p in out.iterdir()) == [LOCK, CHECKPOINT]
