@@ -93,7 +93,7 @@ def test_smooth_line_gives_hertz_force(kernel_device, dx):
     p = Params(L=0.03, dx=dx)
     flat = np.zeros((1, p.n_points))
     bound = 0.26 * (p.dx / p.a) ** 2
-    for algorithm in ("direct", "tree"):
+    for algorithm in ("direct", *EXACT):
         force = to_numpy(contact_force(flat, p, algorithm, "periodic", device=kernel_device))
         assert np.max(np.abs(force / p.F_N - 1)) <= bound
         assert np.ptp(force) == 0.0 or np.ptp(force) <= 1e-12 * p.F_N
@@ -227,7 +227,7 @@ def _exact_squares(t: int) -> int:
     return t * (t + 1) * (2 * t + 1) // 6
 
 
-@pytest.mark.parametrize("algorithm", ["direct", "tree"])
+@pytest.mark.parametrize("algorithm", [name for name, entry in REGISTRY.items() if entry.max_window is not None])
 def test_window_beyond_the_exact_closed_forms_is_refused(algorithm):
     """A contact window wider than MAX_CLOSED_FORM_OFFSET springs a side would make the float64
     sums of squares inexact: refused before any kernel runs, naming dx; edge has no such sum."""
@@ -261,7 +261,7 @@ def test_prepared_bounds_and_prefix_sums_against_numpy(kernel_device, boundary, 
     assert np.max(np.abs((prefix - prefix[:, :1]) - expected)) <= 1e-12 * p.h0 * np.sqrt(work.shape[1])
 
 
-@pytest.mark.parametrize("algorithm", ["tree", "direct", "edge"])
+@pytest.mark.parametrize("algorithm", list(REGISTRY))
 def test_force_offset_is_subtracted_in_the_kernel(kernel_device, algorithm):
     """``launch_force(offset=F_N)`` writes F - F_N (the pipeline's series) to within the one
     rounding of the subtraction (a fused multiply-add may round k u - F_N once instead of twice)."""

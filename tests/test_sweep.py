@@ -6,7 +6,7 @@ from reference import contact_reach, direct_force, sweep_force, to_numpy
 
 from mdroll import Params, contact_force, rough_lines, step_range
 from mdroll.devices import to_warp
-from mdroll.ensemble.prepare import _prefix_sums, prepare_lines
+from mdroll.ensemble.prepare import prepare_lines
 from mdroll.ensemble.sweep import sweep_command
 
 SMALL = Params(L=0.03, dx=20e-6)  # 1500 springs, a/dx = 253
@@ -14,8 +14,7 @@ SMALL = Params(L=0.03, dx=20e-6)  # 1500 springs, a/dx = 253
 
 def _sweep(lines, p, boundary, d, device, tile_steps=None, block_dim=None, loads=None, h_max=None):
     lines = to_warp(np.asarray(lines) if isinstance(lines, np.ndarray) else lines, device)  # on the device
-    prepared = prepare_lines(lines, p, "direct", boundary, d, device, h_max=h_max)  # the row bounds
-    prepared.prefix, prepared.prefix_owner = _prefix_sums(prepared.lines, device)
+    prepared = prepare_lines(lines, p, "sweep", boundary, d, device, h_max=h_max)
     command, force = sweep_command(prepared, p, d, device, tile_steps=tile_steps, block_dim=block_dim, loads=loads)
     command.launch()
     return to_numpy(force)
@@ -102,15 +101,6 @@ def test_tiny_line(device, boundary):
     assert np.max(np.abs(_sweep(lines, p, boundary, p.d0, device) - direct)) <= 1e-12 * p.F_N
 
 
-@pytest.mark.parametrize("dx", [5e-6, 20e-6])
-def test_smooth_line_gives_hertz_force(device, dx):
-    # the bound of test_force.py: (F_sum - F_Hertz)/F_Hertz in [-1/4, 1/8] (dx/a)^2, within 0.26 (dx/a)^2
-    p = Params(L=0.03, dx=dx)
-    force = _sweep(np.zeros((1, p.n_points)), p, "periodic", p.d0, device)
-    assert np.max(np.abs(force / p.F_N - 1)) <= 0.26 * (p.dx / p.a) ** 2
-    assert np.ptp(force) == 0.0
-
-
 def test_same_force_whatever_the_tile_the_block_or_the_batch(device):
     """Tiles of 16 steps to the default, blocks of 1 to 8 lanes (on the CPU through Warp's
     cooperative CPU blocks; 64 to 256 on CUDA), three lines at once or one by one: the same
@@ -136,3 +126,17 @@ def test_same_force_whatever_the_tile_the_block_or_the_batch(device):
     # one by one, with the batch's wheel positions (h_max): each line's own bounds and scale
     alone = np.concatenate([_sweep(lines[r:r + 1], p, "open", d, device, h_max=lines.max()) for r in range(3)])
     assert np.max(np.abs(alone - reference)) <= 1e-12 * p.F_N
+
+
+def test_sweep_runs_decoupled_ensembles_and_refuses_the_coupled_mode():
+    """run_ensemble with the sweep gives the tree's spectra (both exact: equal to rounding); the
+    coupled mode, whose indentation changes every step, refuses it naming the algorithm and mode."""
+    from mdroll import ParameterError, run_ensemble
+
+    p = Params(L=0.03, n_real=3)
+    sweep = run_ensemble(p, seed=2, algorithm="sweep", device="cpu", progress=False)
+    tree = run_ensemble(p, seed=2, algorithm="tree", device="cpu", progress=False)
+    np.testing.assert_allclose(sweep.force_psd, tree.force_psd, rtol=1e-9, atol=1e-12 * tree.force_psd.max())
+    np.testing.assert_allclose(sweep.accel_psd, tree.accel_psd, rtol=1e-9, atol=1e-12 * tree.accel_psd.max())
+    with pytest.raises(ParameterError, match="'sweep' has no coupled step: mode = 'coupled'"):
+        run_ensemble(p, algorithm="sweep", mode="coupled", progress=False)

@@ -109,7 +109,14 @@ class PreparedLines:
     leaf_size: int = DEFAULT_LEAF_SIZE
     band_limit: int = DEFAULT_BAND_LIMIT
     h_top: float = 0.0  # the largest height of all rows (m; where the algorithm needs row bounds)
+    h_low: float = 0.0  # the lowest height of all rows (m; likewise)
     prefix_owner: object = None  # the flat array behind ``prefix`` (:func:`_prefix_sums`)
+
+
+def _batch_bounds(bounds) -> tuple[float, float]:
+    """The lowest and the largest height (m) of a batch from its row bounds (one host copy)."""
+    host = bounds.numpy()
+    return float(host[:, 0].min()), float(host[:, 1].max())
 
 
 def _row_bounds(lines, device):
@@ -216,10 +223,10 @@ def prepare_lines(
     # the row bounds and the largest height of all rows (one host copy): for the default h_max
     # and the windows of the algorithms that need them; a tree's root holds them once h_max is
     # given (one pass over the lines fewer)
-    bounds = h_top = None
+    bounds = h_top = h_low = None
     if h_max is None or (BOUNDS in entry.needs and TREE not in entry.needs):
         bounds = _row_bounds(lines, device)
-        h_top = float(bounds.numpy()[:, 1].max())
+        h_low, h_top = _batch_bounds(bounds)
     if h_max is None:
         h_max = h_top
     first, steps = step_range(params, boundary, d, h_max)
@@ -241,10 +248,10 @@ def prepare_lines(
         prepared.tree, prepared.level_offsets, prepared.top_level, root = _min_max_tree(work, leaf_size, device)
         if prepared.bounds is None:
             prepared.bounds = root
-            h_top = float(root.numpy()[:, 1].max())
+            h_low, h_top = _batch_bounds(root)
     if BOUNDS in entry.needs:
         # each line's window comes from its own maximum (the kernels read ``bounds``), not h_max
-        prepared.h_top = h_top
+        prepared.h_top, prepared.h_low = h_top, h_low
     if entry.max_window is not None:
         window = reach(d + prepared.h_top, indenter_curvature(params))
         if window > entry.max_window:

@@ -10,7 +10,7 @@ import math
 
 from .. import physics
 from ..devices import is_cuda, warp
-from ..params import Params
+from ..params import ParameterError, Params
 
 #: CUDA: lanes a block, the smallest tile (steps a block) and the springs a lane loads at once
 #: (kernels/sweep.py). A lane scans ``tile / lanes`` consecutive bins; a tile takes 44 bytes of
@@ -60,21 +60,28 @@ def sweep_command(prepared, params: Params, d: float, device: str, out=None, off
     """The sweep's force launch, recorded (``wp.Launch``; run with ``.launch()``), and the
     (R, steps) array it writes: ``F - offset`` (N) at indentation d (m) for every step.
 
-    ``prepared`` needs ``lines``, ``prefix``, ``bounds`` and ``h_top`` (see
-    :func:`mdroll.ensemble.force.prepare_lines`); ``tile_steps`` and ``block_dim`` override the
+    ``prepared`` needs ``lines``, ``prefix``, ``bounds``, ``h_low`` and ``h_top`` (see
+    :func:`mdroll.ensemble.prepare.prepare_lines`); ``tile_steps`` and ``block_dim`` override the
     defaults of :func:`sweep_tile`, ``loads`` CUDA_LOADS (1 on the CPU): the force is the same
-    to rounding whatever they are.
+    to rounding whatever they are. Refuses (ParameterError) a batch whose band of uncertain
+    contact is wider than :data:`mdroll.kernels.sweep.MAX_BAND` springs, where the kernel's
+    int32 sums could overflow.
     """
-    from ..kernels.sweep import sweep_kernel
+    from ..kernels.sweep import MAX_BAND, sweep_kernel
 
     wp = warp()
     p = prepared
     rows = p.lines.shape[0]
-    force = out if out is not None else wp.empty((rows, p.steps), dtype=wp.float64, device=device)
     curvature = physics.indenter_profile(params.dx, params.R)  # eq 7 at one spacing
-    # the widest band, for the tile size alone (the kernel reads each row's own bounds): from the
-    # batch's largest height and, lines being near symmetric, its negative as the lowest
-    band = reach_strict(d + p.h_top, curvature) - max(reach_strict(d - p.h_top, curvature), 0)
+    # the widest band of the batch (each row's own is narrower): from its lowest and highest spring
+    band = reach_strict(d + p.h_top, curvature) - max(reach_strict(d + p.h_low, curvature), 0)
+    if band > MAX_BAND:
+        raise ParameterError(
+            f"the sweep's band of uncertain contact spans {band} springs a side at dx = {params.dx!r} m, d = {d:.4g} m "
+            f"and heights {p.h_low:.4g} .. {p.h_top:.4g} m, beyond the {MAX_BAND} its exact int32 sums allow: use "
+            f"the tree"
+        )
+    force = out if out is not None else wp.empty((rows, p.steps), dtype=wp.float64, device=device)
     tile, lanes = sweep_tile(band, device, tile_steps, block_dim)
     inputs = [p.lines, p.prefix, p.bounds, p.n_work, p.first, p.steps, d, curvature, params.k_spring, offset, force]
     if loads is None:
@@ -82,3 +89,9 @@ def sweep_command(prepared, params: Params, d: float, device: str, out=None, off
     command = wp.launch_tiled(sweep_kernel(tile, lanes, loads), dim=(rows, -(-p.steps // tile)), inputs=inputs,
                               block_dim=lanes, device=device, record_cmd=True)
     return command, force
+
+
+def sweep_launch(prepared, params: Params, d: float, offset: float, force, lifts, device: str):
+    """The registry's ``force_launch`` of the sweep (:mod:`mdroll.ensemble.algorithms`): the
+    recorded launch of :func:`sweep_command` with its default tiles, writing ``force``."""
+    return sweep_command(prepared, params, d, device, out=force, offset=offset)[0]
