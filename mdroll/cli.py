@@ -20,7 +20,7 @@ import tempfile
 import tomllib
 from pathlib import Path
 
-from .ensemble.algorithms import ALGORITHMS, DEFAULT_ALGORITHM, REGISTRY
+from .ensemble.algorithms import ALGORITHMS, DEFAULT_ALGORITHMS, REGISTRY
 from .params import TEXT_FIELDS, Params
 
 PARAM_NAMES = tuple(f.name for f in dataclasses.fields(Params))
@@ -116,7 +116,7 @@ def _parser() -> argparse.ArgumentParser:
     p_run.add_argument("--first", type=int, help="index of the first realization (default 0): split an ensemble "
                        "across processes, then `mdroll merge`")
     p_run.add_argument("--seed", type=int, help="master seed (default 0)")
-    p_run.add_argument("--algorithm", choices=ALGORITHMS, help=f"default {DEFAULT_ALGORITHM}; " + "; ".join(
+    p_run.add_argument("--algorithm", choices=ALGORITHMS, help="default: " + ", ".join(f"{name} ({mode})" for mode, name in DEFAULT_ALGORITHMS.items()) + "; " + "; ".join(
         f"{entry.name}: {entry.description}, {entry.complexity.text}" for entry in REGISTRY.values()))
     p_run.add_argument("--mode", choices=["decoupled", "coupled"], help="default decoupled")
     p_run.add_argument("--boundary", choices=["open", "periodic"], help="default open")
@@ -308,7 +308,7 @@ def cmd_params(args) -> int:
     return 0
 
 
-RUN_DEFAULTS = {"seed": 0, "algorithm": DEFAULT_ALGORITHM, "mode": "decoupled", "boundary": "open", "window": False}
+RUN_DEFAULTS = {"seed": 0, "algorithm": None, "mode": "decoupled", "boundary": "open", "window": False}
 
 
 def cmd_run(args) -> int:

@@ -5,8 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from mdroll import Params, bench
+from mdroll import ALGORITHMS, Params, bench
 from mdroll.cli import main
+from mdroll.ensemble.algorithms import REGISTRY
 
 
 def test_fit_exponent_recovers_a_power_law():
@@ -33,10 +34,11 @@ def test_tiny_study_through_the_cli(tmp_path, monkeypatch, device):
     record = json.loads((tmp_path / "bench.json").read_text())
     assert record["environment"][device]["device_name"]
     fits = record["fits"]["refinement"][device]
-    assert set(fits) == {"tree", "direct", "edge", "tree-descent"}
+    variants = {v.name for entry in REGISTRY.values() for v in entry.bench_variants}
+    assert set(fits) == set(ALGORITHMS) | variants
     # direct grows fastest under refinement: its window grows with n
     assert fits["direct"]["exponent"] > fits["edge"]["exponent"]
-    assert len(record["distance"]) == 9 and all(p["force_s"] > 0 for p in record["distance"])
+    assert len(record["distance"]) == 3 * len(ALGORITHMS) and all(p["force_s"] > 0 for p in record["distance"])
     assert {p["realizations"] for p in record["ensemble"]} == {1, 2}
     assert record["stages"][device]["total_s"] > 0
     assert (tmp_path / "bench.png").read_bytes()[:4] == b"\x89PNG"

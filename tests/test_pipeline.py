@@ -8,6 +8,7 @@ import pytest
 from reference import direct_force, psd, to_numpy
 
 from mdroll import EnsembleResult, ParameterError, Params, contact_force, rough_lines, run_ensemble, step_range
+from mdroll.ensemble.algorithms import default_algorithm
 from mdroll.ensemble.pipeline import H_BOUND_SIGMAS
 
 P = Params(L=0.05, n_real=5)
@@ -170,7 +171,7 @@ def test_save_load_round_trip(tmp_path):
     result = run_ensemble(P, seed=7, device="cpu", progress=False)
     path = result.save(tmp_path / "spectra.npz")
     back = EnsembleResult.load(path)
-    assert back.params == result.params and back.seed == 7 and back.algorithm == "tree"
+    assert back.params == result.params and back.seed == 7 and back.algorithm == default_algorithm("decoupled")
     np.testing.assert_array_equal(back.accel_psd, result.accel_psd)
     np.testing.assert_array_equal(back.force_psd_stderr, result.force_psd_stderr)
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..devices import device_of, resolve_device, to_warp, warp
 from ..params import ParameterError, Params
-from .algorithms import DEFAULT_ALGORITHM, LIFTS, algorithm_entry, indenter_curvature
+from .algorithms import DEFAULT_ALGORITHMS, LIFTS, algorithm_entry, indenter_curvature
 from .arguments import check_choice, check_params, check_positive, check_real, check_tree_options
 from .prepare import BOUNDARIES, DEFAULT_BAND_LIMIT, DEFAULT_LEAF_SIZE, PreparedLines, prepare_lines, reach
 
@@ -76,7 +76,7 @@ def _check_finite_lines(data) -> None:
 def contact_force(
     lines,
     params: Params,
-    algorithm: str = DEFAULT_ALGORITHM,
+    algorithm: str = DEFAULT_ALGORITHMS["decoupled"],
     boundary: str = "open",
     d: float | None = None,
     device: str | None = None,
@@ -96,7 +96,8 @@ def contact_force(
         A name in :data:`~mdroll.ensemble.algorithms.ALGORITHMS` (the registry's entries
         describe each): ``direct``, the exact spring sum (eq 10-12) over the window of possible
         contact; ``tree``, the bounding-tree algorithm, equal to ``direct`` to rounding;
-        ``edge``, the edge-incremental approximation of eq 49.
+        ``edge``, the edge-incremental approximation of eq 49; ``sweep`` (the default), running
+        totals over the springs in contact, O(n) and equal to ``direct`` to rounding.
     boundary : {"open", "periodic"}
         ``open``: the thesis's line, wheel from near x_w = a to near L - a
         (:func:`step_range`); ``periodic``: the wheel visits every spring, indices wrap.

@@ -16,7 +16,7 @@ import numpy as np
 from ..devices import is_cuda, queue_on, resolve_device, to_warp, warp
 from ..kernels.spectra import NOT_FINITE
 from ..params import ParameterError, Params
-from .algorithms import DEFAULT_ALGORITHM, algorithm_entry, coupled_entry
+from .algorithms import algorithm_entry, coupled_entry, default_algorithm
 from .arguments import check_choice, check_flag, check_integer, check_params
 from .batching import check_run_fits, default_batch
 from .checkpoint import RunTotals
@@ -52,7 +52,7 @@ def run_ensemble(
     params: Params,
     seed: int = 0,
     realizations=None,
-    algorithm: str = DEFAULT_ALGORITHM,
+    algorithm: str | None = None,
     mode: str = "decoupled",
     boundary: str = "open",
     device: str = "auto",
@@ -73,7 +73,9 @@ def run_ensemble(
     by ``algorithm`` and the wheel on the linearized contact spring (``mode="decoupled"``,
     section 5.1), or the coupled dynamics of eq 13 (``mode="coupled"``; refused for an
     algorithm without a coupled step) -> PSDs (section 6, optional Hann ``window``) -> running
-    per-bin mean and variance. Memory stays O(batch x n). ``leaf_size``: springs per tree leaf.
+    per-bin mean and variance. Memory stays O(batch x n). ``algorithm``: a registry entry
+    (:data:`~mdroll.ensemble.algorithms.ALGORITHMS`), by default the mode's
+    (:data:`~mdroll.ensemble.algorithms.DEFAULT_ALGORITHMS`). ``leaf_size``: springs per tree leaf.
 
     ``checkpoint``: a file the running accumulators are written to after every batch,
     atomically (temporary file, then rename). With a checkpoint, batches are also sized by
@@ -91,6 +93,8 @@ def run_ensemble(
     # every argument checked here, once
     check_params(params)
     check_choice("mode", mode, MODES)
+    if algorithm is None:
+        algorithm = default_algorithm(mode)
     (algorithm_entry if mode == "decoupled" else coupled_entry)(algorithm)
     check_choice("boundary", boundary, BOUNDARIES)
     seed = check_seed(seed)

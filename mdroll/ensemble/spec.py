@@ -17,7 +17,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from ..params import ParameterError, Params
-from .algorithms import DEFAULT_ALGORITHM
+from .algorithms import default_algorithm
 
 
 @dataclass(frozen=True)
@@ -33,7 +33,7 @@ class EnsembleSpec:
     first, realizations : int
         The realization indices ``first .. first + realizations - 1``.
     algorithm, mode, boundary : str
-        As for :func:`mdroll.run_ensemble`.
+        As for :func:`mdroll.run_ensemble`; the algorithm by default the registry's for the mode.
     window : bool
         Hann window on the force and acceleration series before their PSDs.
     roughness : mdroll.roughness.models.RoughnessSpectrum or None
@@ -45,13 +45,15 @@ class EnsembleSpec:
     seed: int = 0
     first: int = 0
     realizations: int = 1
-    algorithm: str = DEFAULT_ALGORITHM
+    algorithm: str | None = None
     mode: str = "decoupled"
     boundary: str = "open"
     window: bool = False
     roughness: object = None
 
     def __post_init__(self) -> None:
+        if self.algorithm is None:  # the registry's default for the mode
+            object.__setattr__(self, "algorithm", default_algorithm(self.mode))
         for name in ("first", "realizations"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int):
