@@ -48,7 +48,8 @@ myst_heading_anchors = 3
 autosummary_generate = True
 templates_path = ["_templates"]
 autosummary_imported_members = False
-autodoc_default_options = {"members": True, "show-inheritance": False}
+# a package documents what it defines; the names it re-exports are documented at their home
+autodoc_default_options = {"members": True, "show-inheritance": False, "ignore-module-all": True}
 autodoc_member_order = "bysource"
 autodoc_typehints = "none"
 numpydoc_show_class_members = False
@@ -87,26 +88,34 @@ html_context = {"default_mode": "light"}
 
 # The docstrings write formulas as plain text ("|q|^(-2H-1)", "max |F_tree - F_direct|"), where
 # reStructuredText would read "|...|" as a substitution: make "|" literal outside ``literals``,
-# literal blocks and tables. Their citations of the theory and performance pages become links.
+# literal blocks and tables. Their citations of the theory and performance pages become links,
+# and relative module references (":mod:`.report`", a sibling or, in a package, a child) become
+# absolute, so that they resolve in autosummary tables on other pages too.
 _LITERAL = re.compile(r"(``.*?``)")
 _PAGE_CITATION = re.compile(r"(?:docs/)?(physics|performance)\.md((?:'s)? (?:sections? \d+(?:\.\d+)?(?: and \d+(?:\.\d+)?)?|v\d+\w*))?")
+_RELATIVE_MODULE = re.compile(r":mod:`\.(\w+(?:\.\w+)*)`")
 
 
-def _prose(text: str) -> str:
+def _prose(text: str, package: str) -> str:
     text = text.replace("|", r"\|")
-    return _PAGE_CITATION.sub(lambda m: f":doc:`{m.group(0)} </{m.group(1)}>`", text)
+    text = _PAGE_CITATION.sub(lambda m: f":doc:`{m.group(0)} </{m.group(1)}>`", text)
+    return _RELATIVE_MODULE.sub(lambda m: f":mod:`~{package}.{m.group(1)}`", text)
 
 
 def _docstring_prose(app, what, name, obj, options, lines):
+    package = name if what == "module" and hasattr(obj, "__path__") else name.rpartition(".")[0]
+    if what != "module":  # a function's or class's module is the package its references start from
+        package = getattr(obj, "__module__", package).rpartition(".")[0]
     literal_indent = None
     for i, line in enumerate(lines):
         indent = len(line) - len(line.lstrip())
         if literal_indent is not None and (not line.strip() or indent > literal_indent):
             continue
         literal_indent = indent if line.rstrip().endswith("::") else None
-        if line.lstrip().startswith(("|", "+")):
+        if line.lstrip().startswith(("| ", "+-", "+=")):  # line blocks and grid tables
             continue
-        lines[i] = "".join(part if part.startswith("``") else _prose(part) for part in _LITERAL.split(line))
+        lines[i] = "".join(part if part.startswith("``") else _prose(part, package)
+                           for part in _LITERAL.split(line))
 
 
 def setup(app):

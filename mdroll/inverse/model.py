@@ -1,6 +1,6 @@
 """The forward model of an averaged spectrum: what the inverse fit compares the data with.
 
-Expected two-sided PSD per rad/s at omega (rad/s), q = omega / v0 (rad/m):
+Expected two-sided PSD per rad/s at omega (rad/s), q = omega / v0 (rad/m)::
 
     C_F(q)     = lambda A (2 E* / q)^2 q^(-2H-1) <sin^2(q a)> w(q)                 (eq 40, linear part)
                + 4 c^2 <cos^2(q a)> C_{h^2}(q) (1 - w(q)),   c = E* R / (4 a)    (eq 48, low band closed form)
