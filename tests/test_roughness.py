@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy import integrate, special
 
-from mdroll import EnsembleSpec, ParameterError, Params, rough_lines
+from mdroll import EnsembleSpec, ParameterError, Params, physics, rough_lines
 from mdroll.cli import main
 from mdroll.ensemble.spectra import psd_rows, to_host
 from mdroll.railway import studies
@@ -261,6 +261,14 @@ def test_mdr_contact_filter_closed_form():
     case = [c for c in comparison["cases"] if c["load_N"] == 50e3 and c["diameter_m"] == 0.92][0]
     assert case["a_m"] == pytest.approx(Params(F_N=50e3, R=0.46).a, rel=1e-12)
     assert len(comparison["cases"]) == 5
+
+
+def test_eq39_for_any_model_is_eq40_for_the_power_law():
+    p = SMALL
+    q = p.dq * np.arange(p.n_points // 2 + 1)
+    general = models.linear_force_psd(p, models.from_params(p))
+    np.testing.assert_allclose(general, physics.force_psd_high_band(q, p.lambda_A, p.H, p.q_min, p.q_max, p.E_star, p.a),
+                               rtol=1e-12, atol=0)
 
 
 def test_eq39_high_band_for_a_rolloff_spectrum(device):

@@ -134,13 +134,13 @@ def _modulation_band_ratio(q, measured_psd, stderr, predicted, q_lo, q_hi, a) ->
 
 def high_band_check(params: Params, spectrum, q_lo: float, seed: int = 0, n_real: int = 8, device: str = "cpu",
                     allowance: float = 0.03) -> dict:
-    """Eq 39 with the model's C_1D (:func:`mdroll.physics.force_psd_linear`) against the tree force
+    """Eq 39 with the model's C_1D (:func:`mdroll.roughness.models.linear_force_psd`) against the tree force
     PSD (periodic, decoupled) on whole modulation periods of [q_lo, 8 q_lo]: the generalization
     of the eq 40 check (physics.md section 7: within about 1 % up to 24 q_min for the power law);
     passes within ``allowance`` + Z_SIGMA standard errors."""
     spec = EnsembleSpec(params, seed=seed, realizations=n_real, boundary="periodic", roughness=spectrum)
     result = run_specs([spec], device=device)[0]
-    predicted = physics.force_psd_linear(result.q, models.grid_psd(params, spectrum), params.E_star, params.a)
+    predicted = models.linear_force_psd(params, spectrum)[: result.q.size]
     ratio, stderr = _modulation_band_ratio(result.q, result.force_psd, result.force_psd_stderr, predicted,
                                            q_lo, 8 * q_lo, params.a)
     return {"model": spectrum.describe().get("model"), "band": [q_lo, 8 * q_lo], "ratio": ratio, "stderr": stderr,
@@ -183,8 +183,7 @@ def eq63_study(params: Params, seed: int = 0, n_real: int = 16, device: str = "c
         return float(np.mean(physics.force_psd_low_band(q[band], grid, p.dq, p.E_star, p.R, p.a)))
 
     def predicted_linear(spectrum):
-        return float(np.mean(physics.force_psd_linear(q[band], models.grid_psd(p, spectrum)[: q.size][band],
-                                                      p.E_star, p.a)))
+        return float(np.mean(models.linear_force_psd(p, spectrum)[: q.size][band]))
 
     eq62 = 4.0 * lam_a * p.E_star**2 * p.a**2 * p.q_min ** (-2.0 * p.H - 1.0)
     eq63 = 1.3 * (physics.THESIS_HURST_OFFSET + p.H) ** 2 / (4.0 * p.H) * (p.h0 / p.d0) ** 2
@@ -260,7 +259,7 @@ def contact_filter_study(params: Params, seed: int = 0, n_real: int = 8, device:
     n = n[np.isin(n, iso.n)]
     ms_r, counts = bands.band_mean_squares(q, grid, params.dq, *bands.wavelength_band_edges_q(n))
     ms_f, _ = bands.band_mean_squares(q, result.force_psd, params.dq, *bands.wavelength_band_edges_q(n))
-    linear = physics.force_psd_linear(q, grid, params.E_star, params.a)
+    linear = models.linear_force_psd(params, iso)[: q.size]
     ms_lin, _ = bands.band_mean_squares(q, linear, params.dq, *bands.wavelength_band_edges_q(n))
     k_c_db = 20.0 * math.log10(params.k_contact * bands.REFERENCES["roughness"] / bands.REFERENCES["force"])
     roughness_db = bands.level_db(ms_r, bands.REFERENCES["roughness"])

@@ -8,9 +8,9 @@ the band outputs of a run are in :mod:`mdroll.railway`, above the ensemble layer
 """
 
 from .models import (GEIKE_LAMBDA, BandLevels, BandLimited, FromCallable, PowerLaw, RollOff, RoughnessSpectrum,
-                     Tabulated, areal_to_profile, from_params, grid_psd, iso3095, line_rms, mdr_to_profile_ratio,
-                     mode_amplitude_table, resolve_level)
+                     Tabulated, areal_to_profile, from_params, grid_psd, iso3095, line_rms, linear_force_psd,
+                     mdr_to_profile_ratio, mode_amplitude_table, resolve_level)
 
 __all__ = ["GEIKE_LAMBDA", "BandLevels", "BandLimited", "FromCallable", "PowerLaw", "RollOff", "RoughnessSpectrum",
-           "Tabulated", "areal_to_profile", "from_params", "grid_psd", "iso3095", "line_rms", "mdr_to_profile_ratio",
-           "mode_amplitude_table", "resolve_level"]
+           "Tabulated", "areal_to_profile", "from_params", "grid_psd", "iso3095", "line_rms", "linear_force_psd",
+           "mdr_to_profile_ratio", "mode_amplitude_table", "resolve_level"]

@@ -462,6 +462,14 @@ def line_rms(params: Params, spectrum: RoughnessSpectrum | None = None) -> float
     return math.sqrt(2.0 * params.dq * float(np.sum(grid_psd(params, spectrum))))
 
 
+def linear_force_psd(params: Params, spectrum: RoughnessSpectrum) -> np.ndarray:
+    """Eq 39 for any model: the linear MDR force PSD ``C_F(q_k) = k_c^2 sinc^2(q_k a) C_1D(q_k)`` (N^2 m)
+    on the grid q_k = k dq, k = 0..n/2, with the generated lines' C_1D (:func:`grid_psd`) and
+    ``physics.force_psd_linear``; for the power law it is eq 40."""
+    q = params.dq * np.arange(params.n_points // 2 + 1, dtype=np.float64)
+    return physics.force_psd_linear(q, grid_psd(params, spectrum), params.E_star, params.a)
+
+
 def mode_amplitude_table(params: Params, spectrum: RoughnessSpectrum) -> np.ndarray:
     """Amplitudes ``a_k = B(q_k) = sqrt(2 pi / L C_1D(q_k))`` (m), k = 0..n/2 (eq 17), of
     :func:`grid_psd`: the table the line kernel takes instead of its in-kernel power law."""
