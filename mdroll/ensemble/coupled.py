@@ -3,20 +3,22 @@
 from __future__ import annotations
 
 from ..devices import warp
-from ..kernels.dynamics import COUPLED_LANES
+from ..kernels.dynamics import COUPLED_LANES, with_integrator
 from ..params import Params
 from .algorithms import contact_constants, coupled_entry
 
 
 def coupled_series(prepared, params: Params, algorithm: str, device: str, d_start: float | None = None,
-                   force_offset: float = 0.0):
+                   force_offset: float = 0.0, integrator: str = "semi-implicit"):
     """Force (N, less ``force_offset``) and acceleration d'' (m/s^2) series of eq 13 for
     prepared lines (:func:`~mdroll.ensemble.prepare.prepare_lines`), by the coupled kernel of
     the algorithm's registry entry; the wheel starts at indentation ``d_start`` (m, default d0)
     at rest. Contact is lost where F = 0. An algorithm without a coupled step is refused
-    (ParameterError)."""
+    (ParameterError). ``integrator``: one of :data:`~mdroll.kernels.dynamics.INTEGRATORS`
+    ("forward-euler", the thesis's scheme, only for the coupling study)."""
     wp = warp()
     kernel, lines = coupled_entry(algorithm).coupled(prepared)
+    kernel = with_integrator(kernel, integrator)
     rows = prepared.lines.shape[0]
     force = wp.empty((rows, prepared.steps), dtype=wp.float64, device=device)
     accel = wp.empty_like(force)

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..devices import is_cuda, queue_on, resolve_device, to_warp, warp
+from ..kernels.dynamics import INTEGRATORS
 from ..kernels.spectra import NOT_FINITE
 from ..params import ParameterError, Params
 from .algorithms import algorithm_entry, coupled_entry, default_algorithm
@@ -64,6 +65,7 @@ def run_ensemble(
     resume: bool = False,
     memory_limit: int | None = None,
     roughness=None,
+    integrator: str = "semi-implicit",
 ) -> EnsembleResult:
     """Run an ensemble and return its averaged force and acceleration spectra.
 
@@ -89,12 +91,20 @@ def run_ensemble(
 
     ``roughness``: a spectrum of :mod:`mdroll.roughness` instead of the one the roughness fields
     of ``params`` name (API only; its description joins the checkpoint's key).
+
+    ``integrator``: the time step of the coupled dynamics, one of
+    :data:`~mdroll.kernels.dynamics.INTEGRATORS`; "forward-euler", the thesis's scheme, only with
+    ``mode="coupled"`` and only for the coupling study (it grows every oscillation).
     """
     # every argument checked here, once
     check_params(params)
     check_choice("mode", mode, MODES)
     if algorithm is None:
         algorithm = default_algorithm(mode)
+    check_choice("integrator", integrator, INTEGRATORS)
+    if mode == "decoupled" and integrator != INTEGRATORS[0]:
+        raise ParameterError(f"integrator = {integrator!r} is not allowed with mode = 'decoupled': the decoupled "
+                             f"response is {INTEGRATORS[0]!r}; use mode = 'coupled'")
     (algorithm_entry if mode == "decoupled" else coupled_entry)(algorithm)
     check_choice("boundary", boundary, BOUNDARIES)
     seed = check_seed(seed)
@@ -111,6 +121,8 @@ def run_ensemble(
 
     key = {"params": params.physical_dict(), "seed": seed, "realizations": indices.tolist(), "algorithm": algorithm,
            "mode": mode, "boundary": boundary, "window": window, "leaf_size": leaf_size}
+    if integrator != INTEGRATORS[0]:
+        key["integrator"] = integrator
     if roughness is None and params.roughness != "powerlaw":
         roughness = from_params(params)  # read (a table file) once, not per batch
     if roughness is not None:
@@ -148,7 +160,7 @@ def run_ensemble(
             accel = None
         else:
             force, accel = stage("response", lambda: coupled_series(prepared, params, algorithm, device,
-                                                                    force_offset=params.F_N))
+                                                                    force_offset=params.F_N, integrator=integrator))
         sums = stage("response", lambda: series_sums(force, params, device, decoupled))
         force_moments, accel_moments, psd_not_finite = stage(
             "spectra", lambda: psd_moments_of_batch(force, accel, sums, params, device, window))

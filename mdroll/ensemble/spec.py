@@ -39,6 +39,9 @@ class EnsembleSpec:
     roughness : mdroll.roughness.models.RoughnessSpectrum or None
         A spectrum instead of the one the roughness fields of ``params`` name (None: those).
         Serialized by its description; a callable spectrum cannot be read back.
+    integrator : str
+        The time step of the coupled dynamics (:func:`mdroll.run_ensemble`; "forward-euler", the
+        thesis's scheme, only for the coupling study).
     """
 
     params: Params
@@ -50,6 +53,7 @@ class EnsembleSpec:
     boundary: str = "open"
     window: bool = False
     roughness: object = None
+    integrator: str = "semi-implicit"
 
     def __post_init__(self) -> None:
         if self.algorithm is None:  # the registry's default for the mode
@@ -105,7 +109,7 @@ class EnsembleSpec:
 
         return run_ensemble(self.params, seed=self.seed, realizations=self.indices, algorithm=self.algorithm,
                             mode=self.mode, boundary=self.boundary, window=self.window, device=device,
-                            progress=progress, roughness=self.roughness, **options)
+                            progress=progress, roughness=self.roughness, integrator=self.integrator, **options)
 
 
 def run_specs(specs: Iterable[EnsembleSpec], device: str = "auto", progress: bool = False, runner=None,

@@ -3,7 +3,11 @@
 Time is sequential per realization; one block per realization shares each step's spring sum.
 The decoupled response (section 5.1) is linear and needs no time loop: kernels/spectra.py.
 Semi-implicit Euler: ``v += dt a(y)`` first, then ``y += dt v`` with the new v; plain forward
-Euler grows the oscillation energy by ~34 % over 10^6 steps at the defaults.
+Euler grows the oscillation energy by ~34 % over 10^6 steps at the defaults. Forward Euler
+(``y += dt v`` with the old v, then ``v += dt a``) is the thesis's scheme ("Euler", section 3.4):
+it is kept, as a compile-time variant of the same kernel (:func:`with_integrator`), only to test
+whether it explains the thesis's Figure 11 (mdroll study coupling); every amplitude grows by
+``sqrt(1 + (omega dt)^2)`` a step under it.
 
 :func:`coupled_dynamics` makes the kernel of one force algorithm from its lane force (its
 ``wp.func``), compiled apart (``wp.static``): each algorithm's kernel module declares its own.
@@ -17,15 +21,39 @@ from .common import Contact
 #: block reduction needs no cross-warp synchronization. Warp runs tiles with one thread on the CPU.
 COUPLED_LANES = 32
 
+#: The time steps of eq 13: the semi-implicit (symplectic) Euler step, and forward Euler, the
+#: thesis's scheme, for the coupling study only (module docstring).
+INTEGRATORS = ("semi-implicit", "forward-euler")
 
-def coupled_dynamics(lines_type, lane_force) -> wp.Kernel:
+# (lines_type, lane_force) of each semi-implicit kernel, and every kernel made, by its arguments
+_MADE_FROM: dict = {}
+_KERNELS: dict = {}
+
+
+def coupled_dynamics(lines_type, lane_force, forward_euler: bool = False) -> wp.Kernel:
     """The eq 13 kernel of the algorithm whose share of a step's force is ``lane_force``.
 
     ``lane_force(lines: lines_type, r: int, c: int, d: wp.float64, contact: Contact, lane: int,
     lanes: int) -> wp.float64`` returns the part (N) of F(x_w, d) that ``lane`` of ``lanes``
     computes with the wheel at spring c of row r, indentation d (m); the parts of all lanes sum
     to F. ``lines_type``: what the algorithm reads of the lines (a ``wp.struct`` or an array).
+    ``forward_euler``: the thesis's forward Euler step instead of the semi-implicit one, chosen
+    at compile time (``wp.static``). One kernel per set of arguments, made once.
     """
+    made = _KERNELS.get((lines_type, lane_force, forward_euler))
+    if made is None:
+        made = _KERNELS[(lines_type, lane_force, forward_euler)] = _coupled_kernel(lines_type, lane_force, forward_euler)
+        _MADE_FROM[made] = (lines_type, lane_force)
+    return made
+
+
+def with_integrator(kernel: wp.Kernel, integrator: str) -> wp.Kernel:
+    """The variant of a kernel of :func:`coupled_dynamics` that steps eq 13 by ``integrator``
+    (one of :data:`INTEGRATORS`)."""
+    return coupled_dynamics(*_MADE_FROM[kernel], forward_euler=integrator == "forward-euler")
+
+
+def _coupled_kernel(lines_type, lane_force, forward_euler: bool) -> wp.Kernel:
 
     @wp.kernel(module="unique")
     def coupled_response(
@@ -42,7 +70,8 @@ def coupled_dynamics(lines_type, lane_force) -> wp.Kernel:
         accel: wp.array2d(dtype=wp.float64),
     ):
         """Eq 13: ``m d'' = F_N - F(x_w(t), d(t))``, d(0) = d_start (d0 in the thesis), d'(0) = 0,
-        the wheel one spring per step from spring ``first``.
+        the wheel one spring per step from spring ``first``; semi-implicit Euler steps (forward
+        Euler in the ``forward_euler`` variant).
 
         Launched tiled, one block per realization. Time is sequential, so the block shares each
         step's force instead: every lane computes its part (``lane_force``), a block-wide sum
@@ -61,7 +90,11 @@ def coupled_dynamics(lines_type, lane_force) -> wp.Kernel:
             if lane == 0:
                 force[r, s] = F - force_offset
                 accel[r, s] = a
-            v += dt * a
-            d += dt * v
+            if wp.static(forward_euler):
+                d += dt * v  # the old velocity (the thesis's scheme)
+                v += dt * a
+            else:
+                v += dt * a
+                d += dt * v
 
     return coupled_response
