@@ -98,12 +98,6 @@ class StudyOutcome:
     summary: str = ""
 
 
-#: The force algorithm of the studies: the bounding tree, exact and the fastest exact one at thesis
-#: scale (force 9.4 ms against the sweep's 30.1 ms for 300 x 2^20 on an H200,
-#: benchmarks/results, commit 931bc75); coupled mode needs it too.
-EXACT_ALGORITHM = "tree"
-
-
 class Runner:
     """The studies' access to :func:`mdroll.run_specs`: one seed and device for the whole study,
     and a record of every ensemble run (spec, steps, device, timings) for the JSON. ``cluster``:
@@ -118,8 +112,8 @@ class Runner:
 
     def spec(self, params, realizations: int, **settings) -> EnsembleSpec:
         """A spec of ``realizations`` realizations from index 0 at this study's seed: decoupled,
-        open and :data:`EXACT_ALGORITHM` unless ``settings`` say otherwise."""
-        settings.setdefault("algorithm", EXACT_ALGORITHM)
+        open and the registry's default algorithm of the mode (the fastest exact one,
+        :data:`mdroll.ensemble.algorithms.DEFAULT_ALGORITHMS`) unless ``settings`` say otherwise."""
         return EnsembleSpec(params=params, seed=self.seed, realizations=realizations, **settings)
 
     def run(self, specs: list) -> list:

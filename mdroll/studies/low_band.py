@@ -26,29 +26,30 @@ from .model import band_rms_thesis, low_band as closed_low_band, plateau_level, 
 
 # ---------------------------------------------------------------------------- low band (Fig 13)
 def low_band(run, L: float, dx: float, realizations: int, q_min_factors=(0.5, 1.0, 2.0)) -> StudyOutcome:
-    """Figure 13, eq 48: the exact force (tree) against eq 48 for three q_min, below q_min/2; and
+    """Figure 13, eq 48: the exact force against eq 48 for three q_min, below q_min/2; and
     both against the closed-form low band. Eq 48 is computed by the edge kernel (eq 49): on a
-    periodic line its linear term has no power below q_min, so there its PSD is eq 48's. Tree
-    and edge share their lines, so the independent-error uncertainties are upper bounds."""
+    periodic line its linear term has no power below q_min, so there its PSD is eq 48's. Both
+    share their lines, so the independent-error uncertainties are upper bounds."""
     base = Params(L=L, dx=dx)
     params = [base.replace(q_min=f * base.q_min) for f in q_min_factors]
-    specs = [run.spec(p, realizations, boundary="periodic", algorithm=alg) for p in params for alg in ("tree", "edge")]
+    # the exact force (the registry's default, None) and eq 49
+    specs = [run.spec(p, realizations, boundary="periodic", algorithm=alg) for p in params for alg in (None, "edge")]
     results = run.run(specs)
     claims, numbers = [], []
     for i, p in enumerate(params):
-        tree, edge = results[2 * i], results[2 * i + 1]
-        low = (tree.q > 0) & (tree.q < p.q_min / 2)
-        ratio, rel = measure.binned_ratio(tree.force_psd, tree.force_psd_stderr, edge.force_psd, edge.force_psd_stderr, low)
+        exact, edge = results[2 * i], results[2 * i + 1]
+        low = (exact.q > 0) & (exact.q < p.q_min / 2)
+        ratio, rel = measure.binned_ratio(exact.force_psd, exact.force_psd_stderr, edge.force_psd, edge.force_psd_stderr, low)
         label = f"q_min = 2 pi / {2 * math.pi / p.q_min * 1e3:.3g} mm"
         claims.append(Claim(f"exact / eq 48 [{label}]", "Fig 13: below q_min the force spectrum is eq 48's "
                             "('very good correspondence')", ratio, rel * ratio, 1.0, "-", "thesis", allowance=0.03,
                             note="PSD sums on 0 < q < q_min/2"))
-        closed = closed_low_band(p, tree.q[low])
-        total, rel_total = measure.band_sum(tree.force_psd, tree.force_psd_stderr, low)
+        closed = closed_low_band(p, exact.q[low])
+        total, rel_total = measure.band_sum(exact.force_psd, exact.force_psd_stderr, low)
         claims.append(Claim(f"exact / closed form [{label}]", "physics.md sec 7: 4 c^2 cos^2(qa) C_h2(q) (not in the thesis)",
                             total / closed.sum(), rel_total * total / closed.sum(), 1.0, "-", "closed form", allowance=0.10))
-        high = (tree.q >= 10 * p.q_min) & (tree.q < 20 * p.q_min)
-        over, over_rel = measure.binned_ratio(edge.force_psd, edge.force_psd_stderr, tree.force_psd, tree.force_psd_stderr, high)
+        high = (exact.q >= 10 * p.q_min) & (exact.q < 20 * p.q_min)
+        over, over_rel = measure.binned_ratio(edge.force_psd, edge.force_psd_stderr, exact.force_psd, exact.force_psd_stderr, high)
         claims.append(Claim(f"eq 49 / exact at [10, 20) q_min [{label}]", "Fig 13: no correspondence at high "
                             "frequencies (expected); eq 49 adds the linear term", over, over_rel * over, None, "-",
                             note="physics.md: eq 49 overshoots the high band (x1.08 at 10 q_min, x1.3 at 20)"))
@@ -58,11 +59,11 @@ def low_band(run, L: float, dx: float, realizations: int, q_min_factors=(0.5, 1.
     def draw(fig):
         top, bottom = fig.subplots(2, 1)
         for i, p in enumerate(params):
-            tree, edge = results[2 * i], results[2 * i + 1]
+            exact, edge = results[2 * i], results[2 * i + 1]
             for ax in (top, bottom):
-                keep = (tree.q > 0) & ((tree.q < p.q_min) if ax is bottom else True)
-                loglog(ax, tree.q[keep], tree.force_psd[keep], None, f"exact, q_min = {p.q_min:.0f} rad/m", color=f"C{i}")
-                ax.loglog(tree.q[keep], edge.force_psd[keep], ".", ms=1.5, color=f"C{i}")
+                keep = (exact.q > 0) & ((exact.q < p.q_min) if ax is bottom else True)
+                loglog(ax, exact.q[keep], exact.force_psd[keep], None, f"exact, q_min = {p.q_min:.0f} rad/m", color=f"C{i}")
+                ax.loglog(exact.q[keep], edge.force_psd[keep], ".", ms=1.5, color=f"C{i}")
         bottom.set_xlabel("q (rad/m)")
         for ax in (top, bottom):
             ax.set_ylabel("C_F (N^2 m)")

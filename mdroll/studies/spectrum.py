@@ -1,5 +1,5 @@
 """Chapter 4 of the thesis: the structure of the acceleration spectrum (Figures 2-7 and 9; eq 21,
-23, 26-31). Decoupled dynamics (section 5.1) and the bounding tree (exact) throughout.
+23, 26-31). Decoupled dynamics (section 5.1) and the registry's fastest exact algorithm throughout.
 
 Where spectral leakage of an open (non-periodic) series would bias a measurement (the low band,
 levels far above q_min), the runs are periodic (the wheel rolls the whole line; physics.md
