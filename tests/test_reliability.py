@@ -360,6 +360,12 @@ def test_cli_refuses_in_one_line_naming_the_option(tmp_path, monkeypatch, capsys
     assert not (tmp_path / "mdroll-out").exists() or not any((tmp_path / "mdroll-out").iterdir())
 
 
+def test_a_batch_that_cannot_fit_is_refused_naming_it(monkeypatch):
+    monkeypatch.setattr(batching, "host_available_bytes", lambda: 16 * 2**30)
+    with pytest.raises(ValueError, match=r"batch = 100000 is too large for cpu: .* need 89.4 GiB"):
+        run_ensemble(P, realizations=10**5, batch=10**5, device="cpu", progress=False)
+
+
 def test_a_line_too_long_for_memory_is_refused_before_work(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(batching, "host_available_bytes", lambda: 16 * 2**30)
     monkeypatch.chdir(tmp_path)

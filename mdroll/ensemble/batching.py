@@ -54,6 +54,21 @@ def check_run_fits(params: Params, device: str, memory_limit: int | None = None)
         )
 
 
+def check_batch_fits(params: Params, batch: int, device: str) -> None:
+    """Refuse a batch (given, or kept by a resumed run) whose realizations cannot fit in the free
+    memory of ``device`` at all, naming it, before it fails to allocate."""
+    need, have = batch * realization_bytes(params), free_bytes(device)
+    if is_cuda(device) and need > have:
+        release_pools(device)
+        have = free_bytes(device)
+    if need > have:
+        raise ParameterError(
+            f"batch = {batch} is too large for {device}: {batch} realizations of {params.n_points} springs need "
+            f"{need / 2**30:.3g} GiB, more than the {have / 2**30:.3g} GiB free; lower batch (or leave it to the "
+            "free memory)"
+        )
+
+
 def default_batch(params: Params, device: str, memory_limit: int | None = None, wanted: int | None = None) -> int:
     """Realizations per batch that fit in half the free memory of the device (host RAM on CPU),
     or in half of ``memory_limit`` bytes when that is smaller.

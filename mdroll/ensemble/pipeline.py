@@ -19,7 +19,7 @@ from ..kernels.spectra import NOT_FINITE
 from ..params import ParameterError, Params
 from .algorithms import algorithm_entry, coupled_entry, default_algorithm
 from .arguments import check_choice, check_flag, check_integer, check_params
-from .batching import check_run_fits, default_batch
+from .batching import check_batch_fits, check_run_fits, default_batch
 from .checkpoint import RunTotals
 from .coupled import coupled_series
 from .force import launch_force
@@ -137,6 +137,7 @@ def run_ensemble(
     if batch is None:
         batch = default_batch(params, device, memory_limit, wanted=len(indices))
     totals.batch = int(batch)
+    check_batch_fits(params, min(totals.batch, len(indices)), device)
     d0 = params.d0
     h_bound = H_BOUND_SIGMAS * line_rms(params, roughness)
     timings = totals.timings
