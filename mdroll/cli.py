@@ -519,6 +519,8 @@ def roughness_parser(sub) -> None:
     check = tasks.add_parser("check", help="line spectra, dB round trip, measured profile, eq 39 high band, eq 63, "
                              "coupled vs decoupled, contact filter: roughness.json; exit 1 on a failure")
     size_options(check, quick="CPU sizes, about a minute (default)", full="thesis-scale ensembles (GPU)")
+    check.add_argument("--only", action="append", metavar="NAME", help="run only this study (repeatable): "
+                       "lines, round_trip, measured_profile, high_band, eq63, dynamics, contact_filter")
     check.add_argument("--seed", type=int, default=0)
     check.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
     output(check)
@@ -535,16 +537,20 @@ def roughness_parser(sub) -> None:
 def cmd_roughness(args) -> int:
     from .railway import tasks as cli_tasks
 
-    out = _output_dir(args)
     if args.task == "check":
         from .devices import resolve_device
+        from .railway.studies import STUDIES
 
-        passed = cli_tasks.check(args.size or "quick", args.seed, resolve_device(args.device), out)
+        unknown = sorted(set(args.only or ()) - set(STUDIES))
+        if unknown:
+            raise UsageError(f"--only: unknown study(ies) {unknown}; valid ones are: {', '.join(STUDIES)}")
+        device = resolve_device(args.device)
+        passed = cli_tasks.check(args.size or "quick", args.seed, device, _output_dir(args), args.only)
         return 0 if passed else 1
     if args.task == "filter":
-        cli_tasks.contact_filter(out)
+        cli_tasks.contact_filter(_output_dir(args))
         return 0
-    cli_tasks.profile(args.file, args.dx, args.segment, out)
+    cli_tasks.profile(args.file, args.dx, args.segment, _output_dir(args))
     return 0
 
 

@@ -293,3 +293,20 @@ def test_coupled_against_decoupled_with_iso3095():
     loud, quiet = record["cases"]
     assert loud["contact_lost_fraction"] > 0.05 and not loud["decoupled_valid"]
     assert quiet["contact_lost_fraction"] == 0
+
+
+def test_cli_roughness_commands(tmp_path, capsys):
+    assert main(["roughness", "check", "--only", "round_trip", "--device", "cpu", "--out", str(tmp_path / "c")]) == 0
+    record = json.loads((tmp_path / "c" / "roughness.json").read_text())
+    assert record["round_trip"]["passed"] and "eq63" not in record
+    assert main(["roughness", "filter", "--out", str(tmp_path / "f")]) == 0
+    header = (tmp_path / "f" / "contact_filter.csv").read_text().splitlines()[0].split(",")
+    assert header[0] == "wavelength_mm" and len(header) == 1 + 3 * 5
+    x = 5e-5 * np.arange(4000)
+    np.savetxt(tmp_path / "p.csv", np.column_stack([x, 1e-6 * np.sin(2 * math.pi * x / 0.01)]), delimiter=",")
+    assert main(["roughness", "profile", str(tmp_path / "p.csv"), "--out", str(tmp_path / "p")]) == 0
+    assert (tmp_path / "p" / "profile_psd.csv").read_text().startswith("# Welch PSD")
+    capsys.readouterr()
+    assert main(["roughness", "check", "--only", "eq99", "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "eq99" in err[0]

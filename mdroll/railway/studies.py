@@ -283,29 +283,36 @@ def roll_profile(profile: measured.Profile, params: Params, algorithm: str = "tr
     return {"q": params.dq * np.arange(psd.size), "force_psd": psd, "force_rms": float(np.std(force_host))}
 
 
-def run_all(size: str = "quick", seed: int = 0, device: str = "cpu") -> dict:
-    """Every study of this module at ``size`` ("quick" or "full"); a JSON-ready record."""
+#: The studies of :func:`run_all`, by name (``mdroll roughness check --only NAME``).
+STUDIES = ("lines", "round_trip", "measured_profile", "high_band", "eq63", "dynamics", "contact_filter")
+
+
+def run_all(size: str = "quick", seed: int = 0, device: str = "cpu", only=None) -> dict:
+    """The studies of this module (:data:`STUDIES`; ``only``: a subset of their names) at ``size``
+    ("quick" or "full"); a JSON-ready record with one entry per study."""
     s = SIZES[size]
     p = s.base
     rolled = models.RollOff(p.H, p.q_min, p.q_max)
-    iso = models.iso3095()
-    wavelengths, levels = [float(w) for w in (1000, 500, 200, 100, 50, 20, 10, 5, 2, 1)], \
-        [10.0, 8.0, 3.0, 0.0, -2.0, -5.0, -8.0, -10.0, -12.0, -15.0]
-    areal = models.PowerLaw(p.H, p.q_min, p.q_max, kind="areal")
-    record = {
-        "size": size, "seed": seed,
-        "lines": [line_spectrum_check(p, m, seed, 4, device) for m in
-                  (models.PowerLaw(p.H, p.q_min, p.q_max), rolled, iso, areal,
+    wavelengths = [1000.0, 500.0, 200.0, 100.0, 50.0, 20.0, 10.0, 5.0, 2.0, 1.0]
+    levels = [10.0, 8.0, 3.0, 0.0, -2.0, -5.0, -8.0, -10.0, -12.0, -15.0]
+    line_models = (models.PowerLaw(p.H, p.q_min, p.q_max), rolled, models.iso3095(),
+                   models.PowerLaw(p.H, p.q_min, p.q_max, kind="areal"),
                    models.Tabulated(np.geomspace(p.q_min / 4, p.q_max, 50), 1e-20 * np.geomspace(1, 1e-6, 50)),
-                   models.FromCallable(lambda q: 1e-14 / (1.0 + (q / 2000.0) ** 3), absolute=True))],
-        "round_trip": db_round_trip(p.replace(L=max(p.L, 5.0), dx=max(p.dx, 5e-5)), wavelengths, levels, seed, 4, device),
-        "measured_profile": measured_profile_check(p.replace(dx=5e-5), models.RollOff(p.H, 2 * p.q_min / 5, p.q_max,
-                                                                                       prefactor=p.lambda_A),
-                                                   s.profile_length, seed, 0.25),
-        "high_band": [high_band_check(p, models.PowerLaw(p.H, p.q_min, p.q_max), p.q_min, seed, s.n_real, device),
-                      high_band_check(p, rolled, p.q_min, seed, s.n_real, device)],
-        "eq63": eq63_study(s.eq63, seed, s.n_real_eq63, device),
-        "dynamics": dynamics_study(s.dynamics, s.speeds, seed, max(2, s.n_real // 2), device),
-        "contact_filter": contact_filter_study(s.dynamics, seed, max(2, s.n_real // 2), device),
+                   models.FromCallable(lambda q: 1e-14 / (1.0 + (q / 2000.0) ** 3), absolute=True))
+    studies = {
+        "lines": lambda: [line_spectrum_check(p, m, seed, 4, device) for m in line_models],
+        "round_trip": lambda: db_round_trip(p.replace(L=max(p.L, 5.0), dx=max(p.dx, 5e-5)), wavelengths, levels, seed,
+                                            4, device),
+        "measured_profile": lambda: measured_profile_check(
+            p.replace(dx=5e-5), models.RollOff(p.H, 2 * p.q_min / 5, p.q_max, prefactor=p.lambda_A), s.profile_length,
+            seed, 0.25),
+        "high_band": lambda: [high_band_check(p, models.PowerLaw(p.H, p.q_min, p.q_max), p.q_min, seed, s.n_real, device),
+                              high_band_check(p, rolled, p.q_min, seed, s.n_real, device)],
+        "eq63": lambda: eq63_study(s.eq63, seed, s.n_real_eq63, device),
+        "dynamics": lambda: dynamics_study(s.dynamics, s.speeds, seed, max(2, s.n_real // 2), device),
+        "contact_filter": lambda: contact_filter_study(s.dynamics, seed, max(2, s.n_real // 2), device),
     }
+    record = {"size": size, "seed": seed}
+    for name in STUDIES if only is None else only:
+        record[name] = studies[name]()
     return record
