@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import os
 
 import numpy as np
 
@@ -58,7 +59,6 @@ def cuda_driver_present() -> bool:
 @contextlib.contextmanager
 def _native_stderr_silenced():
     """Send what native code writes to file descriptor 2 to /dev/null for the duration."""
-    import os
     import sys
 
     sys.stderr.flush()
@@ -70,6 +70,11 @@ def _native_stderr_silenced():
     finally:
         os.dup2(saved, 2)
         os.close(saved)
+
+
+def cpu_cores() -> int:
+    """The CPU cores this process may run on."""
+    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
 
 
 def available_devices() -> list[str]:

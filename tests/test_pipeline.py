@@ -323,3 +323,15 @@ def test_an_algorithm_is_added_by_one_registry_entry(monkeypatch):
     np.testing.assert_array_equal(copy.force_psd, direct.force_psd)
     with pytest.raises(ParameterError, match="'direct-copy' has no coupled step: mode = 'coupled' takes one of tree, direct, edge"):
         run_ensemble(p, algorithm="direct-copy", mode="coupled", progress=False)
+
+
+@pytest.mark.parametrize("mode", ["decoupled", "coupled"])
+def test_cpu_threads_give_the_same_spectra(mode):
+    """A CPU batch split over 3 threads (parts of 2, 2, 1 realizations, moments merged in order)
+    gives the one-thread run's spectra and force moments to rounding."""
+    p = Params(L=0.03, n_real=5)
+    one, three = (run_ensemble(p, seed=3, mode=mode, device="cpu", progress=False, batch=5, threads=t) for t in (1, 3))
+    for name in ("force_psd", "accel_psd"):
+        np.testing.assert_allclose(getattr(three, name), getattr(one, name), rtol=1e-12, atol=1e-14 * getattr(one, name).max())
+    assert three.force_rms == pytest.approx(one.force_rms, rel=1e-12)
+    assert three.force_mean == pytest.approx(one.force_mean, rel=1e-12, abs=1e-12 * p.F_N)

@@ -10,12 +10,13 @@ differently, which would break batch-independent ensembles beyond 1e-12).
 
 from __future__ import annotations
 
+import contextlib
 import functools
-import os
+import threading
 
 import numpy as np
 
-from ..devices import cupy_stream, cupy_view, is_cuda, warp
+from ..devices import cpu_cores, cupy_stream, cupy_view, is_cuda, warp
 
 
 @functools.cache
@@ -47,8 +48,24 @@ def fast_length(limit: int) -> int:
     return best
 
 
+#: Per Python thread: the FFTW threads of its CPU transforms (unset: every core).
+_fftw_threads = threading.local()
+
+
+@contextlib.contextmanager
+def fftw_threads(count: int):
+    """Within the block, this Python thread's CPU transforms use ``count`` FFTW threads: the
+    pipeline's CPU workers each transform their own rows on one (:func:`mdroll.run_ensemble`)."""
+    previous = getattr(_fftw_threads, "count", None)
+    _fftw_threads.count = count
+    try:
+        yield
+    finally:
+        _fftw_threads.count = previous
+
+
 def _threads() -> int:
-    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
+    return getattr(_fftw_threads, "count", None) or cpu_cores()
 
 
 @functools.lru_cache(maxsize=4)

@@ -8,12 +8,14 @@ the result (:mod:`.result`). Here: the batch loop, its stage clock and the progr
 
 from __future__ import annotations
 
+import contextlib
+import threading
 import time
 from pathlib import Path
 
 import numpy as np
 
-from ..devices import is_cuda, queue_on, resolve_device, to_warp, warp
+from ..devices import cpu_cores, is_cuda, queue_on, resolve_device, to_warp, warp
 from ..kernels.dynamics import INTEGRATORS
 from ..kernels.spectra import NOT_FINITE
 from ..params import ParameterError, Params
@@ -66,6 +68,7 @@ def run_ensemble(
     memory_limit: int | None = None,
     roughness=None,
     integrator: str = "semi-implicit",
+    threads: int | None = None,
 ) -> EnsembleResult:
     """Run an ensemble and return its averaged force and acceleration spectra.
 
@@ -95,6 +98,12 @@ def run_ensemble(
     ``integrator``: the time step of the coupled dynamics, one of
     :data:`~mdroll.kernels.dynamics.INTEGRATORS`; "forward-euler", the thesis's scheme, only with
     ``mode="coupled"`` and only for the coupling study (it grows every oscillation).
+
+    ``threads`` (CPU only; default every core of the process): a batch's realizations are split
+    into this many contiguous parts, each run through lines, force and spectra by its own Python
+    thread (Warp's CPU launches and FFTW release the GIL; each part's FFTs take one FFTW
+    thread), and the parts' moments merged in order: the same spectra to rounding whatever the
+    number of threads. On CUDA the device runs the batch as a whole.
     """
     # every argument checked here, once
     check_params(params)
@@ -118,6 +127,7 @@ def run_ensemble(
         batch = check_integer("batch", batch, 1, "realizations")
     device = resolve_device(device)
     check_run_fits(params, device, memory_limit)
+    threads = 1 if is_cuda(device) else (cpu_cores() if threads is None else check_integer("threads", threads, 1, "threads"))
 
     key = {"params": params.physical_dict(), "seed": seed, "realizations": indices.tolist(), "algorithm": algorithm,
            "mode": mode, "boundary": boundary, "window": window, "leaf_size": leaf_size}
@@ -145,6 +155,25 @@ def run_ensemble(
     bar.update(totals.done)
 
     stage = _StageClock(device, timings)
+    decoupled = mode == "decoupled"
+
+    def series_moments(idx, clock, serial=contextlib.nullcontext()):
+        """Lines -> force (and response) -> sums and PSD moments of the realizations ``idx``;
+        the force or response stage inside ``serial``."""
+        lines = clock("generate", lambda: to_warp(rough_lines(params, seed, idx, device=device, roughness=roughness), device))
+        prepared = clock("build", lambda: prepare_lines(lines, params, algorithm, boundary, d0, device, leaf_size, h_bound))
+        with serial:
+            if decoupled:
+                force = clock("force", lambda: launch_force(prepared, params, algorithm, d0, device, offset=params.F_N))
+                accel = None
+            else:
+                force, accel = clock("response", lambda: coupled_series(prepared, params, algorithm, device,
+                                                                        force_offset=params.F_N,
+                                                                        integrator=integrator))
+        sums = clock("response", lambda: series_sums(force, params, device, decoupled))
+        moments = clock("spectra", lambda: psd_moments_of_batch(force, accel, sums, params, device, window))
+        return prepared.steps, sums, moments
+
     rows = None
     start = totals.done
     size = batch if checkpoint is None else 1
@@ -152,31 +181,24 @@ def run_ensemble(
         began = time.perf_counter()
         idx = indices[start:start + size]
         last = start + len(idx) >= len(indices)
-        lines = stage("generate", lambda: to_warp(rough_lines(params, seed, idx, device=device, roughness=roughness), device))
-        prepared = stage("build", lambda: prepare_lines(lines, params, algorithm, boundary, d0, device, leaf_size, h_bound))
-        totals.steps = prepared.steps
-        decoupled = mode == "decoupled"
-        if decoupled:
-            force = stage("force", lambda: launch_force(prepared, params, algorithm, d0, device, offset=params.F_N))
-            accel = None
-        else:
-            force, accel = stage("response", lambda: coupled_series(prepared, params, algorithm, device,
-                                                                    force_offset=params.F_N, integrator=integrator))
-        sums = stage("response", lambda: series_sums(force, params, device, decoupled))
-        force_moments, accel_moments, psd_not_finite = stage(
-            "spectra", lambda: psd_moments_of_batch(force, accel, sums, params, device, window))
+        parts = _cpu_parts(idx, threads)
+        outputs = [series_moments(idx, stage)] if len(parts) == 1 else _in_threads(series_moments, parts, timings)
+        totals.steps = outputs[0][0]
         with queue_on(device):
-            stage("spectra", lambda: totals.add_moments(len(idx), force_moments, accel_moments))
+            for part, (_, _, (force_moments, accel_moments, _)) in zip(parts, outputs):
+                stage("spectra", lambda: totals.add_moments(len(part), force_moments, accel_moments))
             if last:
                 # the result, queued before the last batch's wait, which then covers its copy too
                 rows = totals.spectra_on_host(params, wait=False)
         # the batch's one wait: its checks and force sums need the sums and flags on the host (a
         # failed check ends the run: the moments just merged are never seen or saved)
-        host_sums, psd_bad = to_host(sums), to_host(psd_not_finite)
+        host = [(to_host(sums), to_host(psd_not_finite)) for _, sums, (_, _, psd_not_finite) in outputs]
         stage.settle()
-        _raise_on_rows(host_sums[:, NOT_FINITE] > 0, "force", "force" if decoupled else "response", idx)
-        _raise_on_rows(psd_bad != 0, "force or acceleration PSD", "spectra", idx)
-        totals.add_sums(host_sums, params.F_N)
+        for part, (host_sums, psd_bad) in zip(parts, host):
+            _raise_on_rows(host_sums[:, NOT_FINITE] > 0, "force", "force" if decoupled else "response", part)
+            _raise_on_rows(psd_bad != 0, "force or acceleration PSD", "spectra", part)
+        for host_sums, _ in host:
+            totals.add_sums(host_sums, params.F_N)
         totals.largest_batch = max(totals.largest_batch, len(idx))
         if checkpoint is not None:
             totals.save(checkpoint, key)
@@ -185,7 +207,7 @@ def run_ensemble(
             size = int(min(batch, max(1, rate * CHECKPOINT_SECONDS)))
         bar.update(len(idx))
         start += len(idx)
-        del lines, prepared, force, accel
+        del outputs
     bar.close()
 
     if rows is None:  # a resumed run that had nothing left to do
@@ -201,6 +223,35 @@ def run_ensemble(
         force_rms=totals.force_rms_sum / n, contact_lost_steps=totals.lost, timings=timings,
         batch=totals.largest_batch, realizations=indices.tolist(), window=bool(window),
     )
+
+
+def _cpu_parts(idx: np.ndarray, threads: int) -> list[np.ndarray]:
+    """``idx`` in at most ``threads`` contiguous parts of near-equal size (one for one thread)."""
+    return np.array_split(idx, min(threads, len(idx)))
+
+
+def _in_threads(work, parts: list, timings: dict) -> list:
+    """``work(part, clock, serial)`` for each part in its own thread, with one FFTW thread each;
+    results in the parts' order. ``serial`` is a lock that one thread holds at a time: Warp 1.19
+    keeps the shared memory of a CPU tile kernel (the sweep, the coupled dynamics) behind one
+    process-wide pointer, so two of them must not run at once (they crashed). Each stage's time
+    is the mean over the threads (they overlap)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from .fft import fftw_threads
+
+    clocks = [_StageClock("cpu", dict.fromkeys(timings, 0.0)) for _ in parts]
+    serial = threading.Lock()
+
+    def run(part, clock):
+        with fftw_threads(1):
+            return work(part, clock, serial)
+
+    with ThreadPoolExecutor(len(parts)) as pool:
+        outputs = list(pool.map(run, parts, clocks))
+    for name in timings:
+        timings[name] += sum(clock.timings[name] for clock in clocks) / len(clocks)
+    return outputs
 
 
 class _StageClock:
