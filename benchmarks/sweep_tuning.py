@@ -38,10 +38,12 @@ def main() -> None:
     parser.add_argument("--tiles", type=int, nargs="+", default=TILES)
     parser.add_argument("--lanes", type=int, nargs="+", default=LANES)
     parser.add_argument("--loads", type=int, nargs="+", default=LOADS)
+    parser.add_argument("--length", type=float, default=5.24288, help="line length L (m); 5.24288: 2^20 springs")
+    parser.add_argument("--realizations", type=int, default=300)
     args = parser.parse_args()
     wp = warp()
     device = resolve_device(args.device)
-    p = Params(L=5.24288, n_real=300)
+    p = Params(L=args.length, n_real=args.realizations)
     d = p.d0
     record = {"environment": environment(device), "params": p.as_dict(), "kernels": {}, "sweep": []}
 
