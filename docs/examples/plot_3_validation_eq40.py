@@ -28,6 +28,10 @@ q, measured = result.q, result.force_psd  # rad/m, N^2 m (two-sided, per rad/m)
 predicted = physics.force_psd_high_band(q, params.lambda_A, params.H, params.q_min, params.q_max,
                                         params.E_star, params.a)
 
+# %%
+# Band averages over whole modulation periods remove the sin^2(q a) zeros, which would make a
+# bin-by-bin ratio meaningless.
+
 # whole modulation periods pi/a from q_min up to 16 q_min
 period = np.pi / params.a
 edges = np.arange(params.q_min, 16 * params.q_min, period)

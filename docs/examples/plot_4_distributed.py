@@ -31,6 +31,10 @@ if scheduler:
 else:
     results = mdroll.run_specs(specs, device="cpu")
 
+# %%
+# The four spectra, and the same spectra compensated by eq 23: flat peaks mean the slope is
+# 2H + 3 at every H.
+
 fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 7), dpi=100)
 for spec, result in zip(specs, results):
     p, q = spec.params, result.q

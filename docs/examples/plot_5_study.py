@@ -18,6 +18,9 @@ from mdroll.studies.report import format_table
 run = run_study("slope", size="test", device="cpu", seed=0)
 print(format_table(run.record))
 
+# %%
+# The study's own figures: the spectra it measured and alpha(H) against eq 23.
+
 for figure in run.figures:
     fig = plt.figure(figsize=figure.size, dpi=100)
     figure.draw(fig)

@@ -30,6 +30,9 @@ for name in estimate.free:
     true_value = estimate.truth.get(name, float("nan")) if estimate.truth else float("nan")
     print(f"{name:9s} {true_value:11.4g} {estimate.estimates[name]:11.4g}   [{lo:.4g}, {hi:.4g}]")
 
+# %%
+# The fitted model over the data, on the band the fit used.
+
 fig, ax = plt.subplots(figsize=(8, 5), dpi=100)
 ax.loglog(estimate.omega, estimate.data, lw=0.6, label=f"simulated ensemble ({result.n_real} lines, Hann window)")
 ax.loglog(estimate.omega, estimate.model, lw=1.0, color="C3", label="fitted model")

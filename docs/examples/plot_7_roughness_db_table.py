@@ -27,7 +27,10 @@ params = mdroll.Params(L=4.0, dx=50e-6)  # 80,000 points: wavelengths from 0.8 m
 lines = mdroll.rough_lines(params, seed=6, realizations=4, roughness=spectrum)  # (4, n), metres
 print(f"RMS of the lines: {np.sqrt(np.mean(lines**2)) * 1e6:.3g} µm (the table's own level, not h0)")
 
-# the lines' mean periodogram, two-sided per rad/m (theory, section 3), then its band levels
+# %%
+# Band levels of what was generated: the lines' mean periodogram (two-sided per rad/m, theory
+# section 3) summed over each 1/3-octave band.
+
 B = np.fft.rfft(lines, axis=1) / params.n_points
 psd = (params.length / (2 * np.pi) * np.abs(B) ** 2).mean(axis=0)
 q = params.dq * np.arange(psd.size)
