@@ -180,7 +180,8 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
     T = tile_steps
     BD = block_dim
     S = T // BD  # bins a lane scans
-    # bin t lives at t + t // S: one word of padding after each lane's bins, so that the lanes'
+    LOG_S = S.bit_length() - 1
+    # bin t lives at t + (t >> LOG_S): one bin of padding after each lane's bins, so that the lanes'
     # strided reads of their own bins fall in different banks
     PADDED = T + BD
     LOADS = loads
@@ -211,6 +212,7 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
         outer = reach_strict(d + box[1], curvature)  # no spring reaches farther
         near = wp.max(core, 0)
         scale = fixed_scale(box)
+        row = lines[r]
         bins = wp.tile_zeros(shape=PADDED, dtype=bin9, storage="shared")
 
         # 1. the band springs in contact at c0 go to bin 0: right c0+core+1 .. c0+outer as
@@ -230,7 +232,7 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
             record = bin9()
             touches = False
             if j < band and c0 + m >= 0 and c0 + m < n:
-                h = lines[r, c0 + m]
+                h = row[c0 + m]
                 touches = wp.abs(m) <= reach_strict(h + d, curvature)
                 if touches:
                     record = event(h, lag, scale, side, 1 - 2 * side)
@@ -248,11 +250,11 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
                 i = c0 + 1 + near + j
                 entering[u] = NO_LEVEL
                 if j < spread and i < n:
-                    entering[u] = lines[r, i]
+                    entering[u] = row[i]
                 i = c0 - outer + j
                 leaving[u] = NO_LEVEL
                 if j < spread and i >= 0 and i < n:
-                    leaving[u] = lines[r, i]
+                    leaving[u] = row[i]
             for u in range(LOADS):
                 m = 1 + near + start + u * BD + lane  # the entering spring's offset from c0
                 reach = reach_strict(entering[u] + d, curvature)
@@ -261,7 +263,7 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
                 record = bin9()
                 if enters:
                     record = event(entering[u], reach - near, scale, 0, 1)
-                wp.tile_scatter_add(bins, at + at // S, record, enters)
+                wp.tile_scatter_add(bins, at + (at >> LOG_S), record, enters)
                 m = m - 1 - near - outer  # the leaving spring's
                 reach = reach_strict(leaving[u] + d, curvature)
                 at = m + reach + 1
@@ -269,7 +271,7 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
                 record = bin9()
                 if leaves:
                     record = event(leaving[u], reach - near, scale, 1, 1)
-                wp.tile_scatter_add(bins, at + at // S, record, leaves)
+                wp.tile_scatter_add(bins, at + (at >> LOG_S), record, leaves)
 
         # 3. scan: this lane's bins lane*S .. lane*S+S-1, after the totals of the lanes before
         first_bin = lane * S
@@ -309,6 +311,6 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
         for k in range(S):
             t = k * BD + lane
             if s0 + t < steps:
-                force[r, s0 + t] = forces[t + t // S]
+                force[r, s0 + t] = forces[t + (t >> LOG_S)]
 
     return contact_force_sweep
