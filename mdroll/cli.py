@@ -135,8 +135,19 @@ def _parser() -> argparse.ArgumentParser:
     size_options(p_val, quick="small ensembles, minutes on a 2-core CPU (default)", full="thesis-scale ensembles (GPU)")
     p_val.add_argument("--only", action="append", metavar="NAME", help="run only this check (repeatable): "
                        + ", ".join(_check_names()))
+    p_val.add_argument("--check", action="append", default=[], metavar="MODULE:FUNCTION",
+                       help="also run the checks of this provider (repeatable; docs/validation.md)")
+    p_val.add_argument("--checks", action="append", default=[], metavar="FILE.toml",
+                       help="also run the checks of this TOML file (repeatable; schema in docs/validation.md)")
+    p_val.add_argument("--installed", action="store_true",
+                       help="also run the checks of installed packages (entry-point group mdroll.checks)")
     p_val.add_argument("--seed", type=int, default=0)
     p_val.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
+    p_val.add_argument("--cache-dir", metavar="DIR", help="ensemble cache (default $MDROLL_CACHE_DIR, else "
+                       "~/.cache/mdroll/ensembles)")
+    p_val.add_argument("--no-cache", action="store_true", help="neither read nor write the ensemble cache")
+    p_val.add_argument("--junit-xml", metavar="FILE", help="also write a JUnit XML report, one testcase per check")
+    cluster_options(p_val)
     output(p_val)
 
     p_merge = sub.add_parser("merge", help="merge the spectra.npz of runs over disjoint realizations into one")
@@ -477,25 +488,42 @@ def cmd_merge(args) -> int:
 
 
 def cmd_validate(args) -> int:
+    import time
+
     from .devices import resolve_device
     from .provenance import environment
-    from .validation.checks import SIZES, run_checks
-    from .validation.report import format_table, write_report
+    from .validation import EnsembleCache, SIZES, run_checks, select
+    from .validation.report import format_table, write_junit, write_report
 
     size = args.size or "quick"
-    device = resolve_device(args.device)
-    if args.only:
-        unknown = sorted(set(args.only) - set(_check_names()))
-        if unknown:
-            raise UsageError(f"--only: unknown check(s) {unknown}; valid ones are: {', '.join(_check_names())}")
+    if args.junit_xml:
+        _check_file_path(Path(args.junit_xml), "--junit-xml")
+    providers = select(args.only or (), args.check, args.checks, args.installed)
+    cache = None if args.no_cache else EnsembleCache(args.cache_dir)
     out = _output_dir(args)
-    results = run_checks(size, only=args.only, seed=args.seed, device=device, progress=not args.no_progress)
+    began = time.perf_counter()
+    with cluster_runner(args) as (runner, device):
+        results = run_checks(size, seed=args.seed, device=device, progress=not args.no_progress, providers=providers,
+                             runner=runner, cache=cache)
     meta = {"size": size, "seed": args.seed, "base_params": SIZES[size].base.as_dict(),
-            "coupled_params": SIZES[size].coupled.as_dict(), **environment(device)}
+            "coupled_params": SIZES[size].coupled.as_dict(), **environment(resolve_device(device))}
+    if cache is not None:
+        meta["cache"] = {"dir": str(cache.directory), "hits": cache.hits, "misses": cache.misses}
     write_report(results, out, meta)
+    if args.junit_xml:
+        write_junit(results, args.junit_xml, seconds=time.perf_counter() - began)
     print(format_table(results))
-    print(f"wrote {out}/: validation.json and one PNG per check")
+    print(f"wrote {out}/: validation.json and one PNG per check" + (f"; {args.junit_xml}" if args.junit_xml else ""))
     return 0 if all(r.passed for r in results) else 1
+
+
+def _check_file_path(path: Path, option: str) -> None:
+    """A file to be written later: its folder must exist and be a writable directory."""
+    folder = path.parent
+    if path.is_dir():
+        raise UsageError(f"{option} {path}: is a directory, expected a file name")
+    if not folder.is_dir() or not os.access(folder, os.W_OK):
+        raise UsageError(f"{option} {path}: the folder {folder} does not exist or is not writable")
 
 
 def cmd_bench(args) -> int:

@@ -1,12 +1,14 @@
-"""The validation table, ``validation.json`` and one PNG per check."""
+"""The validation table, ``validation.json``, one PNG per check and JUnit XML, each written atomically."""
 
 from __future__ import annotations
 
 import json
 import re
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
-from .checks import CheckResult
+from ..files import atomic_write
+from .api import CheckResult
 
 
 def format_table(results: list[CheckResult]) -> str:
@@ -26,6 +28,40 @@ def slug(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9.]+", "_", name.replace("=", "")).strip("_")
 
 
+def message(r: CheckResult) -> str:
+    """One line: measured vs predicted, the ratio and the tolerance."""
+    return (f"{r.name} ({r.equation}): measured {r.measured:.6g} {r.unit}, predicted {r.predicted:.6g}, ratio "
+            f"{r.ratio:.6g}, tolerance {r.tolerance_text()}: {'PASS' if r.passed else 'FAIL'}; {r.note}")
+
+
+def junit_xml(results: list[CheckResult], suite: str = "mdroll.validate", seconds: float = 0.0) -> bytes:
+    """A JUnit XML document: one ``<testcase>`` per check (classname = equation), its measured,
+    predicted, ratio, tolerance, kind and unit as ``<property>`` elements, a ``<failure>`` with
+    :func:`message` when it failed and the message as ``<system-out>`` either way."""
+    failures = sum(not r.passed for r in results)
+    root = ET.Element("testsuites", tests=str(len(results)), failures=str(failures), errors="0")
+    node = ET.SubElement(root, "testsuite", name=suite, tests=str(len(results)), failures=str(failures), errors="0",
+                         skipped="0", time=f"{seconds:.3f}")
+    for r in results:
+        case = ET.SubElement(node, "testcase", classname=f"{suite}.{slug(r.equation) or 'check'}", name=r.name, time="0")
+        props = ET.SubElement(case, "properties")
+        for key in ("measured", "predicted", "ratio", "tolerance", "kind", "unit"):
+            value = getattr(r, key)
+            ET.SubElement(props, "property", name=key, value=repr(float(value)) if isinstance(value, float) else str(value))
+        if not r.passed:
+            ET.SubElement(case, "failure", message=message(r), type="CheckFailed").text = message(r)
+        ET.SubElement(case, "system-out").text = message(r)
+    return ET.tostring(root, encoding="utf-8", xml_declaration=True)
+
+
+def write_junit(results: list[CheckResult], path, **kwargs) -> Path:
+    """Write :func:`junit_xml` to ``path`` atomically."""
+    path = Path(path)
+    with atomic_write(path) as file:
+        file.write(junit_xml(results, **kwargs))
+    return path
+
+
 def write_report(results: list[CheckResult], out, meta: dict) -> list[Path]:
     """Write ``validation.json`` (records and ``meta``: size, seed, device, versions, date) and
     one PNG per check that draws a figure, into the directory ``out``; returns the paths."""
@@ -38,7 +74,8 @@ def write_report(results: list[CheckResult], out, meta: dict) -> list[Path]:
     out.mkdir(parents=True, exist_ok=True)
     record = {**meta, "passed": all(r.passed for r in results), "checks": [r.as_dict() for r in results]}
     paths = [out / "validation.json"]
-    paths[0].write_text(json.dumps(record, indent=2, default=float))
+    with atomic_write(paths[0], "w") as file:
+        json.dump(record, file, indent=2, default=float)
     for r in results:
         if r.plot is None:
             continue
@@ -46,7 +83,8 @@ def write_report(results: list[CheckResult], out, meta: dict) -> list[Path]:
         r.plot(ax)
         ax.set_title(f"{r.name} ({r.equation}): ratio {r.ratio:.4f}, {'PASS' if r.passed else 'FAIL'}", fontsize=9)
         path = out / f"{slug(r.name)}.png"
-        fig.savefig(path, dpi=110)
+        with atomic_write(path) as file:
+            fig.savefig(file, dpi=110, format="png")
         plt.close(fig)
         paths.append(path)
     return paths

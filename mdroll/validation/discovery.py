@@ -1,0 +1,187 @@
+"""Finding checks: the built-ins by name, ``package.module:function``, TOML files of checks and
+the ``mdroll.checks`` entry-point group of installed packages; and running them.
+
+A *check provider* is a :class:`~mdroll.validation.api.Check`, or a callable returning a Check,
+a :class:`~mdroll.validation.api.CheckResult` or an iterable of them. The callable takes no
+argument, or one: the :class:`~mdroll.validation.checks.Context` (sizes, seed, ensemble source)
+that the built-ins take.
+
+TOML schema (``mdroll validate --checks FILE.toml``): an array of tables ``[[check]]``, each
+
+====================  =========================================================================
+key                   meaning
+====================  =========================================================================
+``name``              the check's name (string, required)
+``prediction``        ``"package.module:function"``, a callable ``(x, params) -> PSD or scalar``
+``comparison``        ``"ratio"`` (default), ``"slope"``, ``"period"`` or ``"peak"``
+``band``              ``[lo, hi]`` in ``band_unit`` (required)
+``band_unit``         ``"q_min"`` (default), ``"rad/m"``, ``"omega_0"`` or ``"rad/s"``
+``whole_periods``     band made of whole modulation periods pi/a (default false)
+``allowance``, ``k``  the tolerance: allowance + k standard errors (defaults 0.05 and 3)
+``quantity``          ``"force"`` (default) or ``"accel"``
+``paired``            per-realization standard errors (default false)
+``equation``,         labels of the result
+``unit``, ``note``
+``[check.spec]``      ``seed``, ``first``, ``realizations``, ``algorithm``, ``mode``,
+                      ``boundary``, ``window`` of :class:`mdroll.EnsembleSpec`, and a table
+                      ``[check.spec.params]`` of :class:`mdroll.Params` fields (SI units)
+``[check.reference]`` optional second ensemble for a scalar ratio: changes to ``spec``, same keys
+====================  =========================================================================
+
+and, beside them, an optional top-level ``providers = ["package.module:function", ...]``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import math
+import inspect
+import tomllib
+from importlib.metadata import entry_points
+from pathlib import Path
+
+from ..ensemble.spec import EnsembleSpec
+from ..params import ParameterError, Params
+from .api import Band, Check, CheckResult, PredictionError
+from .checks import CHECKS, SIZES, Context, ValidationSize
+from .ensembles import EnsembleSource
+
+#: The entry-point group of installed packages' check providers.
+ENTRY_POINT_GROUP = "mdroll.checks"
+CHECK_KEYS = {"name", "prediction", "comparison", "band", "band_unit", "whole_periods", "allowance", "k", "quantity",
+              "paired", "equation", "unit", "note", "spec", "reference"}
+SPEC_KEYS = {f.name for f in dataclasses.fields(EnsembleSpec)}
+
+
+def load_object(target: str):
+    """The object named by ``"package.module:attribute"``, or a ParameterError naming it."""
+    module_name, sep, attribute = target.partition(":")
+    if not sep or not module_name or not attribute:
+        raise ParameterError(f"check {target!r} is not of the form package.module:function")
+    try:
+        obj = importlib.import_module(module_name)
+    except ImportError as exc:
+        raise ParameterError(f"check {target!r}: cannot import {module_name!r} ({exc})") from None
+    for part in attribute.split("."):
+        if not hasattr(obj, part):
+            raise ParameterError(f"check {target!r}: {module_name!r} has no attribute {attribute!r}")
+        obj = getattr(obj, part)
+    return obj
+
+
+def installed_providers() -> dict:
+    """The providers of the ``mdroll.checks`` entry points, by entry-point name."""
+    out = {}
+    for point in entry_points(group=ENTRY_POINT_GROUP):
+        try:
+            out[point.name] = point.load()
+        except Exception as exc:  # an installed package's import error: named, one line
+            raise ParameterError(f"entry point {point.name!r} ({point.value}) of group {ENTRY_POINT_GROUP!r} "
+                                 f"failed to load: {type(exc).__name__}: {exc}") from None
+    return out
+
+
+def _spec(table: dict, where: str) -> EnsembleSpec:
+    unknown = set(table) - SPEC_KEYS
+    if unknown:
+        raise ParameterError(f"{where}: unknown key(s) {sorted(unknown)}; allowed: {', '.join(sorted(SPEC_KEYS))}")
+    try:
+        return EnsembleSpec(**{**table, "params": Params(**table.get("params", {}))})
+    except TypeError as exc:
+        raise ParameterError(f"{where}: {exc}") from None
+
+
+def checks_from_toml(path) -> list[Check]:
+    """The checks of a TOML file (schema in the module docstring) and its ``providers``."""
+    file = Path(path)
+    if not file.is_file():
+        raise ParameterError(f"checks file {str(path)!r} does not exist")
+    try:
+        data = tomllib.loads(file.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise ParameterError(f"checks file {path}: not valid TOML ({exc})") from None
+    unknown = set(data) - {"check", "providers"}
+    if unknown:
+        raise ParameterError(f"checks file {path}: unknown top-level key(s) {sorted(unknown)}; allowed: check, providers")
+    providers = [load_object(t) for t in data.get("providers", [])]
+    for number, table in enumerate(data.get("check", []), start=1):
+        where = f"checks file {path}, check {number}"
+        unknown = set(table) - CHECK_KEYS
+        missing = {"name", "prediction", "band"} - set(table)
+        if unknown or missing:
+            raise ParameterError(f"{where}: " + (f"unknown key(s) {sorted(unknown)}" if unknown else
+                                                  f"missing key(s) {sorted(missing)}"))
+        table = dict(table)
+        spec = _spec(table.pop("spec", {}), where + " [spec]")
+        reference = table.pop("reference", None)
+        if reference is not None:
+            merged = {**spec.as_dict(), **{k: v for k, v in reference.items() if k != "params"}}
+            merged["params"] = {**spec.params.as_dict(), **reference.get("params", {})}
+            reference = _spec(merged, where + " [reference]")
+        lo, hi = table.pop("band")
+        band = Band(float(lo), float(hi), table.pop("band_unit", "q_min"), table.pop("whole_periods", False))
+        providers.append(Check(spec=spec, reference=reference, band=band,
+                               prediction=load_object(table.pop("prediction")), **table))
+    return providers
+
+
+def _provided(provider, ctx: Context) -> list:
+    """The Checks and CheckResults of one provider."""
+    if isinstance(provider, (Check, CheckResult)):
+        return [provider]
+    if not callable(provider):
+        raise ParameterError(f"check provider {provider!r} is neither a Check nor callable")
+    name = getattr(provider, "__qualname__", repr(provider))
+    try:
+        items = provider(ctx) if inspect.signature(provider).parameters else provider()
+    except ParameterError:
+        raise
+    except Exception as exc:  # a user's provider may fail in any way: bad input, named
+        raise PredictionError(f"check provider {name!r} raised {type(exc).__name__}: {exc}") from None
+    if isinstance(items, (Check, CheckResult)):
+        return [items]
+    items = list(items)
+    bad = [i for i in items if not isinstance(i, (Check, CheckResult))]
+    if bad:
+        raise ParameterError(f"check provider {name!r} returned {bad[0]!r}, "
+                             "not a Check or CheckResult")
+    return items
+
+
+def select(only=(), targets=(), files=(), installed: bool = False) -> list:
+    """The providers to run: built-ins named in ``only``, ``module:function`` ``targets``, the
+    checks of TOML ``files`` and, with ``installed``, the entry points; all built-ins if none."""
+    unknown = [n for n in only if n not in CHECKS]
+    if unknown:
+        raise ParameterError(f"unknown check(s) {unknown}; valid ones are: {', '.join(CHECKS)}")
+    providers = [CHECKS[n] for n in only] + [load_object(t) for t in targets]
+    for path in files:
+        providers += checks_from_toml(path)
+    if installed:
+        providers += list(installed_providers().values())
+    return providers or list(CHECKS.values())
+
+
+def run_checks(size: str | ValidationSize = "quick", only=None, seed: int = 0, device: str = "cpu",
+               progress: bool = False, providers=None, runner=None, cache=None) -> list[CheckResult]:
+    """Run ``providers`` (default the built-ins named in ``only``, all without it; see
+    :func:`select`) on ensembles of ``size`` (``"quick"``, ``"full"`` or a :class:`ValidationSize`)
+    from ``device`` or ``runner``, through ``cache`` (an :class:`~mdroll.validation.cache.EnsembleCache`
+    or None)."""
+    if providers is None:
+        providers = select(only or ())
+    if isinstance(size, str):
+        if size not in SIZES:
+            raise ParameterError(f"size = {size!r} is not allowed: choose one of {sorted(SIZES)}")
+        size = SIZES[size]
+    ctx = Context(size, seed, EnsembleSource(device, runner, cache, progress))
+    results = []
+    for provider in providers:
+        for item in _provided(provider, ctx):
+            results.append(item if isinstance(item, CheckResult) else item.run(ctx.source))
+    for r in results:  # a NaN measurement fails its check; a NaN prediction is bad input
+        if not (math.isfinite(r.predicted) and math.isfinite(r.tolerance)):
+            raise PredictionError(f"check {r.name!r}: predicted {r.predicted!r} with tolerance {r.tolerance!r}: "
+                                  "not finite")
+    return results
