@@ -37,6 +37,7 @@ def assert_spectrum_matches(result, prediction, band, comparison: str = "ratio",
     Returns the :class:`~mdroll.validation.CheckResult`; raises AssertionError with measured vs
     predicted, the ratio, the tolerance and the bins when it fails.
     """
+    __tracebackhide__ = True  # pytest shows the caller's line and this message, not this helper
     import numpy as np
 
     from ..validation.api import Band, Check
