@@ -101,6 +101,9 @@ def test_check_result_pass_rules_and_table():
     table = format_table(rows)
     assert "2/4 passed" in table and table.count("FAIL") == 2
     assert slug("eq 23 slope H=0.5") == "eq_23_slope_H0.5"
+    exact = CheckResult("x == direct", "section 4", 2e-15, 0.0, 1e-12, "absolute", "F_N", "")
+    assert exact.passed and exact.as_dict()["ratio"] is None and json.dumps(exact.as_dict(), allow_nan=False)
+    assert format_table([exact]).splitlines()[2].split()[-3] == "-"
 
 
 class _Differences:
@@ -120,10 +123,9 @@ class _Differences:
 
 def test_exactness_check_predicts_zero_within_1e12(monkeypatch):
     # issue 15: with predicted = tolerance = 1e-12, 1.5e-12 F_N passed; the check states max |dF| <= 1e-12 F_N
-    ctx = Context(SIZES["quick"], 0, _Differences(1.5e-12))
-    (r,) = check_exact_algorithms(ctx)
-    assert r.predicted == 0.0 and r.tolerance == 1e-12 and not r.passed
-    assert check_exact_algorithms(Context(SIZES["quick"], 0, _Differences(1e-12)))[0].passed
+    results = check_exact_algorithms(Context(SIZES["quick"], 0, _Differences(1.5e-12)))
+    assert results and all(r.predicted == 0.0 and r.tolerance == 1e-12 and not r.passed for r in results)
+    assert all(r.passed for r in check_exact_algorithms(Context(SIZES["quick"], 0, _Differences(1e-12))))
     # every exact algorithm of the registry, from the registry (a new exact entry is checked too)
     monkeypatch.setitem(algorithms.REGISTRY, "exact-twin", algorithms.REGISTRY["tree"])
     source = _Differences(0.0)

@@ -71,6 +71,7 @@ class CheckResult:
 
     @property
     def ratio(self) -> float:
+        """measured / predicted; NaN where the prediction is 0 (the JSON then holds null)."""
         return self.measured / self.predicted if self.predicted else math.nan
 
     @property
@@ -89,7 +90,7 @@ class CheckResult:
 
     def as_dict(self) -> dict:
         return {"name": self.name, "equation": self.equation, "measured": self.measured, "predicted": self.predicted,
-                "ratio": self.ratio, "tolerance": self.tolerance, "kind": self.kind, "unit": self.unit,
+                "ratio": self.ratio if math.isfinite(self.ratio) else None, "tolerance": self.tolerance, "kind": self.kind, "unit": self.unit,
                 "passed": self.passed, "note": self.note, "details": self.details}
 
 

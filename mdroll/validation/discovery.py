@@ -51,7 +51,8 @@ from .ensembles import EnsembleSource
 ENTRY_POINT_GROUP = "mdroll.checks"
 CHECK_KEYS = {"name", "prediction", "comparison", "band", "band_unit", "whole_periods", "allowance", "k", "quantity",
               "paired", "equation", "unit", "note", "spec", "reference"}
-SPEC_KEYS = {f.name for f in dataclasses.fields(EnsembleSpec)}
+#: A spec's keys in TOML (its roughness through the roughness fields of [check.spec.params]).
+SPEC_KEYS = {f.name for f in dataclasses.fields(EnsembleSpec)} - {"roughness"}
 
 
 def load_object(target: str):
@@ -116,7 +117,8 @@ def checks_from_toml(path) -> list[Check]:
         spec = _spec(table.pop("spec", {}), where + " [spec]")
         reference = table.pop("reference", None)
         if reference is not None:
-            merged = {**spec.as_dict(), **{k: v for k, v in reference.items() if k != "params"}}
+            merged = {**{k: v for k, v in spec.as_dict().items() if k in SPEC_KEYS},
+                      **{k: v for k, v in reference.items() if k != "params"}}
             merged["params"] = {**spec.params.as_dict(), **reference.get("params", {})}
             reference = _spec(merged, where + " [reference]")
         lo, hi = table.pop("band")

@@ -102,7 +102,8 @@ class EnsembleSource:
         device = resolve_device(self.device)
         batch = max(1, default_batch(spec.params, device) // 4)
         for part in spec.split(batch):
-            yield rough_lines(spec.params, spec.seed, np.arange(part.first, part.first + part.realizations), device=device), device
+            indices = np.arange(part.first, part.first + part.realizations)
+            yield rough_lines(spec.params, spec.seed, indices, device=device, roughness=spec.roughness), device
 
     def force_difference(self, spec: EnsembleSpec, algorithm: str, reference: str = "direct") -> float:
         """max |F_algorithm - F_reference| (N) over the lines of ``spec`` at d0 on its boundary."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -16,11 +17,15 @@ def format_table(results: list[CheckResult]) -> str:
     header = f"{'check':<22} {'eq':<18} {'measured':>12} {'predicted':>12} {'ratio':>8} {'tolerance':>10}  result"
     rows = [header, "-" * len(header)]
     for r in results:
-        rows.append(f"{r.name:<22} {r.equation:<18} {r.measured:>12.5g} {r.predicted:>12.5g} {r.ratio:>8.4f} "
+        rows.append(f"{r.name:<22} {r.equation:<18} {r.measured:>12.5g} {r.predicted:>12.5g} {_ratio_text(r):>8} "
                     f"{r.tolerance_text():>10}  {'PASS' if r.passed else 'FAIL'}")
     passed = sum(r.passed for r in results)
     rows.append(f"{passed}/{len(results)} passed")
     return "\n".join(rows)
+
+
+def _ratio_text(r: CheckResult) -> str:
+    return f"{r.ratio:.4f}" if math.isfinite(r.ratio) else "-"
 
 
 def slug(name: str) -> str:
@@ -30,8 +35,10 @@ def slug(name: str) -> str:
 
 def message(r: CheckResult) -> str:
     """One line: measured vs predicted, the ratio and the tolerance."""
-    return (f"{r.name} ({r.equation}): measured {r.measured:.6g} {r.unit}, predicted {r.predicted:.6g}, ratio "
-            f"{r.ratio:.6g}, tolerance {r.tolerance_text()}: {'PASS' if r.passed else 'FAIL'}; {r.note}")
+    label = f"{r.name} ({r.equation})" if r.equation else r.name
+    unit = "" if r.unit == "-" else f" {r.unit}"
+    return (f"{label}: measured {r.measured:.6g}{unit}, predicted {r.predicted:.6g}{unit}, ratio {_ratio_text(r)}, "
+            f"tolerance {r.tolerance_text()}: {'PASS' if r.passed else 'FAIL'}; {r.note}")
 
 
 def junit_xml(results: list[CheckResult], suite: str = "mdroll.validate", seconds: float = 0.0) -> bytes:
@@ -47,6 +54,8 @@ def junit_xml(results: list[CheckResult], suite: str = "mdroll.validate", second
         props = ET.SubElement(case, "properties")
         for key in ("measured", "predicted", "ratio", "tolerance", "kind", "unit"):
             value = getattr(r, key)
+            if key == "ratio" and not math.isfinite(value):
+                continue  # a prediction of 0 has no ratio
             ET.SubElement(props, "property", name=key, value=repr(float(value)) if isinstance(value, float) else str(value))
         if not r.passed:
             ET.SubElement(case, "failure", message=message(r), type="CheckFailed").text = message(r)
