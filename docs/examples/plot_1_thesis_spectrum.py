@@ -3,8 +3,9 @@ The thesis's acceleration spectrum
 ==================================
 
 The wheel's normal acceleration spectrum at the thesis's parameters (:math:`\Delta x` = 5 µm,
-:math:`H` = 0.7, :math:`h_0` = 0.5 µm, open boundary, decoupled dynamics, bounding tree), on a
-1 m line with 24 realizations instead of 5 m and 300, so that it runs in seconds on one CPU core.
+:math:`H` = 0.7, :math:`h_0` = 0.5 µm, open boundary, decoupled dynamics, the default exact
+algorithm), on a 1 m line with 24 realizations instead of 5 m and 300, so that it runs in seconds
+on one CPU core.
 
 The figure shows the features of the thesis's Figure 2: the contact resonance at
 :math:`\omega_0 = \sqrt{2 a E^*/m}`, the onset of the roughness band at :math:`q_{min} v_0`
