@@ -1,4 +1,4 @@
-"""Host side of the sweep force (:mod:`mdroll.kernels.sweep`): tile size, fixed-point scale, launch.
+"""Host side of the sweep force (:mod:`mdroll.kernels.sweep`): tile size, band check, launch.
 
 The sweep is exact and O(n) at a fixed indentation d (physics.md section 4). It reads the lines,
 their prefix sums (eq 18) and the row bounds ``(min h, max h)`` of a :class:`PreparedLines`.
@@ -25,7 +25,7 @@ CPU_MIN_TILE = 4096
 #: start is uncertain, one side): the band is read 2 + 2 x T / band times a tile, so the work a
 #: step stays O(1) as the band grows under refinement.
 TILE_PER_BAND = 4
-#: The largest tile: its bins and forces take 44 x (4096 + lanes) bytes, ~180 KiB, within the
+#: The largest tile: its bins and forces take 44 x (4096 + lanes) bytes, 180-190 KiB, within the
 #: 256 KiB CPU arena of Warp 1.19 and the 227 KiB of shared memory of an H100/H200 block.
 MAX_TILE = {"cpu": 4096, "cuda": 4096}
 
