@@ -1,8 +1,8 @@
 """The built-in checks: the thesis's analytic predictions against ensembles (physics.md section 7).
 
 Each built-in is a function of a :class:`Context` (the ensembles' sizes, the seed and an
-:class:`~mdroll.validation.ensembles.EnsembleSource`) returning :class:`CheckResult`s, built on the
-check API (:mod:`mdroll.validation.api`): declarative :class:`Check`s where the prediction is a
+:class:`~mdroll.validation.ensembles.EnsembleSource`) returning :class:`CheckResult` records, built on
+the check API (:mod:`mdroll.validation.api`): declarative :class:`Check` objects where the prediction is a
 closed form of (q, params), and the same band statistics and tolerance rule (allowance + k
 standard errors) where a check compares with a reference series of the same lines (eq 48), a
 force difference (the exact algorithms) or several ensembles (eq 58). Band averages span whole

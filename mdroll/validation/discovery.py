@@ -8,25 +8,25 @@ that the built-ins take.
 
 TOML schema (``mdroll validate --checks FILE.toml``): an array of tables ``[[check]]``, each
 
-====================  =========================================================================
-key                   meaning
-====================  =========================================================================
-``name``              the check's name (string, required)
-``prediction``        ``"package.module:function"``, a callable ``(x, params) -> PSD or scalar``
-``comparison``        ``"ratio"`` (default), ``"slope"``, ``"period"`` or ``"peak"``
-``band``              ``[lo, hi]`` in ``band_unit`` (required)
-``band_unit``         ``"q_min"`` (default), ``"rad/m"``, ``"omega_0"`` or ``"rad/s"``
-``whole_periods``     band made of whole modulation periods pi/a (default false)
-``allowance``, ``k``  the tolerance: allowance + k standard errors (defaults 0.05 and 3)
-``quantity``          ``"force"`` (default) or ``"accel"``
-``paired``            per-realization standard errors (default false)
-``equation``,         labels of the result
+=======================  =========================================================================
+key                      meaning
+=======================  =========================================================================
+``name``                 the check's name (string, required)
+``prediction``           ``"package.module:function"``, a callable ``(x, params) -> PSD or scalar``
+``comparison``           ``"ratio"`` (default), ``"slope"``, ``"period"`` or ``"peak"``
+``band``                 ``[lo, hi)`` in ``band_unit`` (required)
+``band_unit``            ``"q_min"`` (default), ``"rad/m"``, ``"omega_0"`` or ``"rad/s"``
+``whole_periods``        band made of whole modulation periods pi/a (default false)
+``allowance``, ``k``     the tolerance: allowance + k standard errors (defaults 0.05 and 3)
+``quantity``             ``"force"`` (default) or ``"accel"``
+``paired``               per-realization standard errors (default false)
+``equation``,            labels of the result
 ``unit``, ``note``
-``[check.spec]``      ``seed``, ``first``, ``realizations``, ``algorithm``, ``mode``,
-                      ``boundary``, ``window`` of :class:`mdroll.EnsembleSpec`, and a table
-                      ``[check.spec.params]`` of :class:`mdroll.Params` fields (SI units)
-``[check.reference]`` optional second ensemble for a scalar ratio: changes to ``spec``, same keys
-====================  =========================================================================
+``[check.spec]``         ``seed``, ``first``, ``realizations``, ``algorithm``, ``mode``,
+                         ``boundary``, ``window`` of :class:`mdroll.EnsembleSpec`, and a table
+                         ``[check.spec.params]`` of :class:`mdroll.Params` fields (SI units)
+``[check.reference]``    optional second ensemble for a scalar ratio: changes to ``spec``, same keys
+=======================  =========================================================================
 
 and, beside them, an optional top-level ``providers = ["package.module:function", ...]``.
 """

@@ -24,6 +24,7 @@ from ..devices import resolve_device
 from ..ensemble.batching import default_batch
 from ..ensemble.force import contact_force
 from ..ensemble.lines import rough_lines
+from ..ensemble.pipeline import progress_bar
 from ..ensemble.result import EnsembleResult
 from ..ensemble.spec import EnsembleSpec, run_specs
 from ..ensemble.spectra import array_rows, psd_rows, to_host, wavenumbers
@@ -71,8 +72,9 @@ class EnsembleSource:
             self._memo[key] = compute()
         return self._memo[key]
 
-    def _run(self, specs: list[EnsembleSpec]) -> list[EnsembleResult]:
-        return run_specs(specs, device=self.device, progress=self.progress, runner=self.runner)
+    def _run(self, specs: list[EnsembleSpec], progress: bool | None = None) -> list[EnsembleResult]:
+        progress = self.progress if progress is None else progress
+        return run_specs(specs, device=self.device, progress=progress, runner=self.runner)
 
     def result(self, spec: EnsembleSpec) -> EnsembleResult:
         """The ensemble result of ``spec``."""
@@ -87,10 +89,14 @@ class EnsembleSource:
         def compute():
             merged, rows = None, []
             parts = spec.split(1)
+            p = spec.params
+            bar = progress_bar(len(parts), self.progress, f"{spec.algorithm} L={p.L:g} m H={p.H:g} h0={p.h0:g} m")
             for start in range(0, len(parts), PAIRED_CHUNK):
-                results = self._run(parts[start:start + PAIRED_CHUNK])
+                results = self._run(parts[start:start + PAIRED_CHUNK], progress=False)  # one bar, not one a realization
                 rows.extend(r.force_psd[:kept] for r in results)
                 merged = EnsembleResult.merge(([merged] if merged is not None else []) + results)
+                bar.update(len(results))
+            bar.close()
             self._memo.setdefault(spec.key(), self.cache.result(spec, lambda: merged))
             return {"rows": np.array(rows)}
 
