@@ -9,6 +9,8 @@ Invalidation: a new mdroll version changes every key, so nothing older is read a
 spec is another key. Entries are never updated in place: each is written atomically (a
 temporary file beside it, then ``os.replace``) and a file that cannot be read is recomputed and
 replaced. Old entries are never removed by mdroll: delete the directory to reclaim the space.
+A development checkout keeps its version between commits: clear the cache (or ``--no-cache``)
+after changing the force path there.
 The device is not in the key: results agree across devices to rounding.
 
 Location: ``cache_dir`` where given (``mdroll validate --cache-dir``, ``--mdroll-cache-dir`` of

@@ -111,18 +111,23 @@ class EnsembleSource:
             indices = np.arange(part.first, part.first + part.realizations)
             yield rough_lines(spec.params, spec.seed, indices, device=device, roughness=spec.roughness), device
 
-    def force_difference(self, spec: EnsembleSpec, algorithm: str, reference: str = "direct") -> float:
-        """max |F_algorithm - F_reference| (N) over the lines of ``spec`` at d0 on its boundary."""
-        def compute():
-            largest = 0.0
-            for lines, device in self._line_batches(spec):
-                force = {name: array_rows(contact_force(lines, spec.params, name, spec.boundary, device=device), device)
-                         for name in (algorithm, reference)}
-                largest = max(largest, float(abs(force[algorithm] - force[reference]).max()))
-            return {"max_abs": np.array(largest)}
+    def force_differences(self, spec: EnsembleSpec, algorithms, reference: str = "direct") -> dict:
+        """max |F_algorithm - F_reference| (N) over the lines of ``spec`` at d0 on its boundary, for
+        each of ``algorithms``, from one pass over the lines (the reference computed once)."""
+        algorithms = tuple(algorithms)
 
-        key = (spec.key(), algorithm, reference)
-        return float(self._memoized(key, lambda: self.cache.arrays(spec, f"{algorithm}-{reference}", compute))["max_abs"])
+        def compute():
+            largest = dict.fromkeys(algorithms, 0.0)
+            for lines, device in self._line_batches(spec):
+                base = array_rows(contact_force(lines, spec.params, reference, spec.boundary, device=device), device)
+                for name in algorithms:
+                    force = array_rows(contact_force(lines, spec.params, name, spec.boundary, device=device), device)
+                    largest[name] = max(largest[name], float(abs(force - base).max()))
+            return {name: np.array(value) for name, value in largest.items()}
+
+        what = "-".join(algorithms) + f"-vs-{reference}"
+        arrays = self._memoized((spec.key(), what), lambda: self.cache.arrays(spec, what, compute))
+        return {name: float(arrays[name]) for name in algorithms}
 
     def series_rows(self, spec: EnsembleSpec, name: str, series, keep_q: float) -> np.ndarray:
         """Per-realization PSD rows (q <= keep_q, rad/m) of ``series(params, lines)``, a reference
