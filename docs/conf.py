@@ -94,12 +94,14 @@ html_context = {"default_mode": "light"}
 _LITERAL = re.compile(r"(``.*?``)")
 _PAGE_CITATION = re.compile(r"(?:docs/)?(physics|performance)\.md((?:'s)? (?:sections? \d+(?:\.\d+)?(?: and \d+(?:\.\d+)?)?|v\d+\w*))?")
 _RELATIVE_MODULE = re.compile(r":mod:`\.(\w+(?:\.\w+)*)`")
+_ROLE_PLURAL = re.compile(r"(:\w+:`[^`]+`)s\b")
 
 
 def _prose(text: str, package: str) -> str:
     text = text.replace("|", r"\|")
     text = _PAGE_CITATION.sub(lambda m: f":doc:`{m.group(0)} </{m.group(1)}>`", text)
-    return _RELATIVE_MODULE.sub(lambda m: f":mod:`~{package}.{m.group(1)}`", text)
+    text = _RELATIVE_MODULE.sub(lambda m: f":mod:`~{package}.{m.group(1)}`", text)
+    return _ROLE_PLURAL.sub(r"\1\\ s", text)  # ":class:`Check`s": a role needs a break after it
 
 
 def _docstring_prose(app, what, name, obj, options, lines):

@@ -104,6 +104,43 @@ def run_ensemble(
     thread (Warp's CPU launches and FFTW release the GIL; each part's FFTs take one FFTW
     thread), and the parts' moments merged in order: the same spectra to rounding whatever the
     number of threads. On CUDA the device runs the batch as a whole.
+
+    Parameters
+    ----------
+    params : Params
+        The physical and numerical parameters, SI units (physics.md section 1).
+    seed : int
+        Master seed in [0, 2^64); realization j's line depends on (seed, j) alone.
+    realizations : None, int or sequence of int
+        ``params.n_real`` when None, R for indices 0..R-1, or the indices themselves.
+    algorithm : str or None
+        Force algorithm (:data:`mdroll.ALGORITHMS`); None: the mode's default.
+    mode : {"decoupled", "coupled"}
+    boundary : {"open", "periodic"}
+    device : str
+        ``"auto"``, ``"cpu"``, ``"cuda"`` or ``"cuda:N"``.
+    batch : int or None
+        Realizations per batch; None: sized from free memory.
+    progress : bool
+        Show a progress bar.
+    window : bool
+        Hann window (scaled to mean square 1) before the FFT.
+    leaf_size : int
+        Springs per tree leaf (``algorithm="tree"``).
+    checkpoint : path or None
+    resume : bool
+    memory_limit : int or None
+        Bytes the batches may use.
+    roughness : RoughnessSpectrum or None
+    integrator : str
+    threads : int or None
+
+    Returns
+    -------
+    EnsembleResult
+        Per bin: ``q`` (rad/m), ``omega = q v0`` (rad/s), ``force_psd`` and its standard error
+        (N^2 m: two-sided, per rad/m), ``accel_psd`` and its standard error ((m/s^2)^2 m); and
+        ``force_mean``, ``force_rms`` (N), ``n_real``, ``steps``.
     """
     # every argument checked here, once
     check_params(params)

@@ -70,6 +70,10 @@ def step_range(params: Params, boundary: str, d: float, h_max: float) -> tuple[i
     of steps of the form ``2^a 3^b 5^c`` (:func:`mdroll.ensemble.fft.fast_length`): at most
     about 1 % fewer at 10^6 steps, and the series' FFTs run about 3x faster than at a length with
     large prime factors.
+
+    ``d``: the wheel's indentation (m); ``h_max``: the highest roughness on the lines (m).
+    Returns ``first`` (a spring index; the wheel's position is ``first dx``, m) and ``steps`` (one
+    spring, ``dt = dx / v0`` s, each).
     """
     check_choice("boundary", boundary, BOUNDARIES)
     n = params.n_points

@@ -121,6 +121,7 @@ def run_specs(specs: Iterable[EnsembleSpec], device: str = "auto", progress: boo
     object with the same ``run_specs(specs, device, progress, **options)`` method runs them
     elsewhere: :class:`mdroll.distributed.DaskRunner` spreads them over a Dask cluster (there
     ``device`` is resolved on each worker). The results are the same to rounding either way.
+    Returns one :class:`mdroll.EnsembleResult` per spec (its units: :func:`mdroll.run_ensemble`).
     """
     if runner is not None:
         return runner.run_specs(specs, device=device, progress=progress, **options)
