@@ -134,7 +134,7 @@ def _modulation_band_ratio(q, measured_psd, stderr, predicted, q_lo, q_hi, a) ->
 
 def high_band_check(params: Params, spectrum, q_lo: float, seed: int = 0, n_real: int = 8, device: str = "cpu",
                     allowance: float = 0.03) -> dict:
-    """Eq 39 with the model's C_1D (:func:`mdroll.roughness.models.linear_force_psd`) against the tree force
+    """Eq 39 with the model's C_1D (:func:`mdroll.roughness.models.linear_force_psd`) against the exact force
     PSD (periodic, decoupled) on whole modulation periods of [q_lo, 8 q_lo]: the generalization
     of the eq 40 check (physics.md section 7: within about 1 % up to 24 q_min for the power law);
     passes within ``allowance`` + Z_SIGMA standard errors."""
