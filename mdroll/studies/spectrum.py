@@ -231,34 +231,38 @@ def slope(run, L: float, dx: float, realizations: int, hursts=(0.3, 0.4, 0.5, 0.
 
 # ---------------------------------------------------------------------------- modulation (Fig 5-6)
 def fit_modulation(result, q_hi_factor: float = 24.0) -> tuple[float, float, float]:
-    """Period (rad/m) of the sin^2 modulation of C_F q^(2H+3) on [q_min, q_hi_factor q_min] by a
-    weighted least-squares fit of ``A sin^2(pi q / P + phi) + B`` (scipy.optimize.curve_fit,
-    absolute standard errors from the ensemble), started from the autocorrelation period
-    (:func:`mdroll.ensemble.measure.modulation_period`). Returns ``(P, stderr P, reduced chi^2)``."""
+    """Period (rad/m) of the sin^2 modulation of C_F q^(2H+3) on [q_min, q_hi_factor q_min]: the
+    best period of ``A sin^2(pi q / P + phi) + B`` (linear in the other three) on a grid from half
+    to twice pi/a (eq 26; a search range, not a start the result leans on), then a weighted
+    least-squares fit of all four (scipy.optimize.curve_fit, absolute standard errors from the
+    ensemble). Returns ``(P, stderr P, reduced chi^2)``."""
     from scipy.optimize import curve_fit
 
     p = result.params
-    q_hi = q_hi_factor * p.q_min
-    mask = (result.q >= p.q_min * (1 - 1e-12)) & (result.q <= q_hi)
+    mask = (result.q >= p.q_min * (1 - 1e-12)) & (result.q <= q_hi_factor * p.q_min)
     q = result.q[mask]
     scale = q ** (2 * p.H + 3)
     y, sigma = result.force_psd[mask] * scale, result.force_psd_stderr[mask] * scale
     norm = y.mean()
-    start = measure.modulation_period(result.q, result.force_psd, p.H, p.q_min, q_hi)
+    y, sigma = y / norm, sigma / norm
+    best = None
+    for period in np.linspace(0.5, 2.0, 301) * math.pi / p.a:  # steps of 0.5 %: the fit refines
+        # sin^2(pi q/P + phi) = (1 - cos(2 pi q/P + 2 phi)) / 2: linear in (1, cos, sin) at fixed P
+        basis = np.stack([np.ones_like(q), np.cos(2 * math.pi * q / period), np.sin(2 * math.pi * q / period)], axis=1)
+        coef, *_ = np.linalg.lstsq(basis / sigma[:, None], y / sigma, rcond=None)
+        chi2 = float(np.sum(((basis @ coef - y) / sigma) ** 2))
+        if best is None or chi2 < best[0]:
+            best = (chi2, period, coef)
+    _, period, (offset, c, s_) = best
+    amplitude = 2 * math.hypot(c, s_)
+    start = (amplitude, period, 0.5 * math.atan2(s_, -c), offset - amplitude / 2)
 
     def model(x, amplitude, period, phase, floor):
         return amplitude * np.sin(math.pi * x / period + phase) ** 2 + floor
 
-    best = None
-    for phase in np.linspace(0, math.pi, 8, endpoint=False):  # the phase is periodic: start from several
-        try:
-            popt, pcov = curve_fit(model, q, y / norm, p0=(2.0, start, phase, 0.0), sigma=sigma / norm, absolute_sigma=True)
-        except RuntimeError:
-            continue
-        chi2 = float(np.sum(((y / norm - model(q, *popt)) / (sigma / norm)) ** 2) / (q.size - 4))
-        if best is None or chi2 < best[2]:
-            best = (float(popt[1]), float(math.sqrt(pcov[1, 1])), chi2)
-    return best
+    popt, pcov = curve_fit(model, q, y, p0=start, sigma=sigma, absolute_sigma=True)
+    chi2 = float(np.sum(((y - model(q, *popt)) / sigma) ** 2) / (q.size - 4))
+    return float(popt[1]), float(math.sqrt(pcov[1, 1])), chi2
 
 
 def window_transform_check(a: float, dx: float, length: float = 0.2) -> dict:
@@ -297,7 +301,7 @@ def modulation(run, L: float, dx: float, realizations: int) -> StudyOutcome:
         claims.append(Claim(f"d_omega [{label}]", "eq 26: d_omega = pi v0 / a", period * p.v0, err * p.v0, expected,
                             "rad/s", "thesis", allowance=0.005 * expected,
                             note=f"a = {p.a * 1e3:.4g} mm; fit of A sin^2(pi q/P + phi) + B to C_F q^(2H+3) on "
-                                 f"[1, 24] q_min, reduced chi^2 {chi2:.2f}"))
+                                 f"[1, 24] q_min (P searched in [0.5, 2] pi/a), reduced chi^2 {chi2:.2f}"))
         numbers[label] = {"a_m": p.a, "v0_m_s": p.v0, "d_omega_rad_s": period * p.v0, "stderr_rad_s": err * p.v0,
                           "pi_v0_over_a_rad_s": expected, "reduced_chi2": chi2}
     ratio, ratio_err = ratio_stderr(*periods[variants[1][0]], *periods["defaults"])
