@@ -141,6 +141,9 @@ def test_toml_checks(user_module):
                     '"userchecks:eq40"\nband = [1, 8]\nwhole_periods = true\nallowance = 0.1\n[check.spec]\nseed = 3\n'
                     'realizations = 4\nboundary = "periodic"\n[check.spec.params]\nL = 0.03\ndx = 1e-5\n')
     assert _validate(user_module, "--checks", str(path)) == 0
+    (user_module / "empty.toml").write_text("# nothing\n")
+    with pytest.raises(ValueError, match="holds no"):
+        select(files=[user_module / "empty.toml"])
     names = [c["name"] for c in json.loads((user_module / "out" / "validation.json").read_text())["checks"]]
     assert names == ["eq 40 mine", "eq 40 from toml"]
 
@@ -158,6 +161,9 @@ def test_entry_point_discovery(monkeypatch):
     broken = EntryPoint(name="broken", value="no_such_package.x:y", group=discovery.ENTRY_POINT_GROUP)
     monkeypatch.setattr(discovery, "entry_points", lambda group: [broken])
     with pytest.raises(ValueError, match="entry point 'broken'.*failed to load"):
+        select(installed=True)
+    monkeypatch.setattr(discovery, "entry_points", lambda group: [])
+    with pytest.raises(ValueError, match="no installed package declares checks"):  # not the built-ins instead
         select(installed=True)
 
 

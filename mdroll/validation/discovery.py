@@ -159,9 +159,15 @@ def select(only=(), targets=(), files=(), installed: bool = False) -> list:
         raise ParameterError(f"unknown check(s) {unknown}; valid ones are: {', '.join(CHECKS)}")
     providers = [CHECKS[n] for n in only] + [load_object(t) for t in targets]
     for path in files:
-        providers += checks_from_toml(path)
+        found = checks_from_toml(path)
+        if not found:
+            raise ParameterError(f"checks file {path} holds no [[check]] table and no providers")
+        providers += found
     if installed:
-        providers += list(installed_providers().values())
+        found = list(installed_providers().values())
+        if not found:
+            raise ParameterError(f"no installed package declares checks (entry-point group {ENTRY_POINT_GROUP!r})")
+        providers += found
     return providers or list(CHECKS.values())
 
 
