@@ -88,17 +88,18 @@ html_context = {"default_mode": "light"}
 
 # The docstrings write formulas as plain text ("|q|^(-2H-1)", "max |F_tree - F_direct|"), where
 # reStructuredText would read "|...|" as a substitution: make "|" literal outside ``literals``,
-# literal blocks and tables. Their citations of the theory and performance pages become links,
+# roles, literal blocks and tables. Their citations of the theory and performance pages become links,
 # and relative module references (":mod:`.report`", a sibling or, in a package, a child) become
 # absolute, so that they resolve in autosummary tables on other pages too.
 _LITERAL = re.compile(r"(``.*?``)")
 _PAGE_CITATION = re.compile(r"(?:docs/)?(physics|performance)\.md((?:'s)? (?:sections? \d+(?:\.\d+)?(?: and \d+(?:\.\d+)?)?|v\d+\w*))?")
 _RELATIVE_MODULE = re.compile(r":mod:`\.(\w+(?:\.\w+)*)`")
+_ROLE = re.compile(r"(:\w+:`[^`]*`)")  # ":math:`|q|`" keeps its bars
 _ROLE_PLURAL = re.compile(r"(:\w+:`[^`]+`)s\b")
 
 
 def _prose(text: str, package: str) -> str:
-    text = text.replace("|", r"\|")
+    text = "".join(part if _ROLE.fullmatch(part) else part.replace("|", r"\|") for part in _ROLE.split(text))
     text = _PAGE_CITATION.sub(lambda m: f":doc:`{m.group(0)} </{m.group(1)}>`", text)
     text = _RELATIVE_MODULE.sub(lambda m: f":mod:`~{package}.{m.group(1)}`", text)
     return _ROLE_PLURAL.sub(r"\1\\ s", text)  # ":class:`Check`s": a role needs a break after it
