@@ -178,6 +178,9 @@ def _parser() -> argparse.ArgumentParser:
     p_inv.add_argument("--round-trip", action="store_true", help="run the round-trip study instead: roundtrip.json, "
                        "roundtrip.png, roundtrip.md")
     size_options(p_inv, quick="round trip: the CPU-sized grid (default)", full="round trip: the full grid (GPU)")
+    p_inv.add_argument("--workers", type=int, default=1, help="round trip: processes for the fits (default 1)")
+    p_inv.add_argument("--passes-list", metavar="K,K,...", help="round trip: only these numbers of passes")
+    p_inv.add_argument("--lengths", metavar="L,L,...", help="round trip: only these rolling distances (m)")
     output(p_inv)
 
     p_bench = sub.add_parser("bench", help="scaling study of the three algorithms: bench.json, bench.png and a table")
@@ -630,6 +633,19 @@ def _band(text: str):
     return lo, hi
 
 
+def _numbers(text, kind, option):
+    """A comma-separated list of numbers (None for None)."""
+    if text is None:
+        return None
+    try:
+        values = [kind(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise UsageError(f"{option} {text!r}: expected comma-separated numbers") from None
+    if not values or any(v <= 0 for v in values):
+        raise UsageError(f"{option} {text!r}: expected positive numbers")
+    return values
+
+
 def _known(items) -> dict:
     known = {}
     for item in items or []:
@@ -657,9 +673,13 @@ def cmd_invert(args) -> int:
 
         if args.spectrum:
             raise UsageError("--round-trip simulates its own spectra: give no SPECTRUM")
+        if args.workers < 1:
+            raise UsageError(f"--workers {args.workers}: must be at least 1")
         out = _output_dir(args, clear=INVERT_OUTPUTS)
         say = (lambda text: None) if args.no_progress else (lambda text: print(text, file=sys.stderr, flush=True))
-        record = run_study(args.size or "quick", device=resolve_device(args.device), folder=out, progress=say)
+        record = run_study(args.size or "quick", device=resolve_device(args.device), folder=out, progress=say,
+                           workers=args.workers, passes=_numbers(args.passes_list, int, "--passes-list"),
+                           lengths=_numbers(args.lengths, float, "--lengths"))
         with atomic_write(out / "roundtrip.png") as file:
             plot_study(record, file)
         with atomic_write(out / "roundtrip.md", "w") as file:

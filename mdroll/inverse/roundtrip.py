@@ -74,7 +74,8 @@ def bootstrap(spectrum, result, replicates: int, device: str = "auto", seed: int
     """Parametric bootstrap: simulate ``replicates`` ensembles with mdroll at the estimate (K passes
     each, the spectrum's own L, dx, boundary and window; seeds ``seed + i``) through
     :func:`mdroll.run_specs`, refit each like the original, and report per free parameter the
-    replicates' estimates and their 2.5 and 97.5 percentiles. Only for mdroll spectra (the
+    replicates' estimates, their 2.5 and 97.5 percentiles (the percentile interval) and their
+    mean less the estimate (the estimator's bias there). Only for mdroll spectra (the
     simulation's L, dx and boundary are needed)."""
     sim = spectrum.simulation
     if not sim:
@@ -82,7 +83,7 @@ def bootstrap(spectrum, result, replicates: int, device: str = "auto", seed: int
                              "available for mdroll spectra only")
     if isinstance(replicates, bool) or not isinstance(replicates, int) or replicates < 2:
         raise ParameterError(f"bootstrap = {replicates!r} is not allowed: it needs at least 2 replicates")
-    params = simulation_params(result.estimates, sim, result.passes)
+    params = simulation_params({**result.estimates, "v0": result.known["v0"]}, sim, result.passes)
     specs = [EnsembleSpec(params, seed=seed + i, realizations=result.passes, boundary=sim["boundary"],
                           mode=sim["mode"], algorithm=sim["algorithm"], window=spectrum.window)
              for i in range(replicates)]
@@ -95,17 +96,22 @@ def bootstrap(spectrum, result, replicates: int, device: str = "auto", seed: int
             estimates[n].append(refit.estimates[n])
     return {"replicates": replicates, "seed": seed, "params": params.as_dict(),
             "estimates": estimates,
+            "bias": {n: float(np.mean(v)) - result.estimates[n] for n, v in estimates.items()},
             "ci95": {n: [float(np.percentile(v, 2.5)), float(np.percentile(v, 97.5))] for n, v in estimates.items()}}
 
 
 def simulation_params(estimates: dict, sim: dict, passes: int) -> Params:
-    """The Params of a simulation at ``estimates`` (SI): E from E* with the simulation's nu (eq
-    1-2), F_N = 4 a^3 E* / (3 R) (eq 14-15), the simulation's L and dx."""
+    """The Params of a simulation at ``estimates`` (SI, with v0): E from E* with the simulation's nu
+    (eq 1-2), F_N = 4 a^3 E* / (3 R) (eq 14-15), the simulation's L and dx."""
     e = estimates
     E = e["E_star"] * 2.0 * (1.0 - sim["nu"] ** 2)
     return Params(E=E, nu=sim["nu"], R=e["R"], m=e["m"], F_N=load_times_radius(e["a"], e["E_star"]) / e["R"],
-                  v0=e["v0"] if "v0" in e else sim["v0"], L=sim["L"], dx=sim["dx"], h0=e["h0"], H=e["H"],
+                  v0=e["v0"], L=sim["L"], dx=sim["dx"], h0=e["h0"], H=e["H"],
                   q_min=e["q_min"], n_real=passes)
+
+
+def _round_trip_spec(truth: Params, passes: int, seed: int) -> EnsembleSpec:
+    return EnsembleSpec(truth.replace(n_real=passes), seed=seed, realizations=passes, boundary="open", window=True)
 
 
 def round_trip(truth: Params, passes: int, seed: int = 0, device: str = "auto", known=KNOWN, band=None,
@@ -113,14 +119,20 @@ def round_trip(truth: Params, passes: int, seed: int = 0, device: str = "auto", 
     """Simulate ``passes`` realizations at ``truth`` (open boundary, Hann window, decoupled), invert
     the acceleration spectrum knowing ``known`` (and v0), compare. Returns one row: the estimates,
     their 95 % intervals, errors (H absolute, others relative) and whether each interval covers."""
-    spec = EnsembleSpec(truth.replace(n_real=passes), seed=seed, realizations=passes, boundary="open", window=True)
     t0 = time.perf_counter()
-    ensemble = run_specs([spec], device=device)[0]
-    t1 = time.perf_counter()
-    spectrum = from_result(ensemble, "accel", window=True)
-    result = fit(spectrum, known={k: getattr(truth, k) for k in known}, band=band, bin=bin, profile=False)
-    return _compare(result, spectrum.truth, {"passes": passes, "L": truth.L, "seed": seed, "simulate_s": t1 - t0,
-                                             "fit_s": time.perf_counter() - t1})
+    ensemble = run_specs([_round_trip_spec(truth, passes, seed)], device=device)[0]
+    row = _fit_row((from_result(ensemble, "accel", window=True), {k: getattr(truth, k) for k in known}, band, bin))
+    row.update(seed=seed, simulate_s=time.perf_counter() - t0 - row["fit_s"])
+    return row
+
+
+def _fit_row(job) -> dict:
+    """Fit one simulated spectrum and compare (a top-level function: worker processes run it)."""
+    spectrum, known, band, bin_size = job
+    t0 = time.perf_counter()
+    result = fit(spectrum, known=known, band=band, bin=bin_size, profile=False)
+    return _compare(result, spectrum.truth, {"passes": spectrum.passes, "L": spectrum.simulation["L"],
+                                             "fit_s": time.perf_counter() - t0})
 
 
 def _compare(result, truth: dict, row: dict) -> dict:
@@ -162,37 +174,58 @@ def realistic_case(truth: Params, passes: int, seed: int, device: str, folder, n
                                              "noise_floor": floor, "fit_s": time.perf_counter() - t1})
 
 
-def run_study(size: str = "quick", device: str = "auto", folder=None, progress=lambda text: None) -> dict:
-    """Every round trip of ``SIZES[size]`` and the realistic cases; a JSON-ready record with the
-    rows, a summary per (K, L) (median and 90th percentile of |error|, coverage of the 95 %
-    intervals) and the total time."""
+def run_study(size: str = "quick", device: str = "auto", folder=None, progress=lambda text: None, workers: int = 1,
+              passes=None, lengths=None) -> dict:
+    """Every round trip of ``SIZES[size]`` (``passes`` and ``lengths`` restrict its K and L) and the
+    realistic cases; a JSON-ready record with the rows, a summary per (K, L) (median and 90th
+    percentile of |error|, coverage of the 95 % intervals) and the total time.
+
+    Per (K, L) cell the ensembles run one after the other on ``device`` (:func:`mdroll.run_specs`),
+    then their fits in ``workers`` processes (the fit is NumPy on the host)."""
+    from concurrent.futures import ProcessPoolExecutor
     from pathlib import Path
 
     if size not in SIZES:
         raise ParameterError(f"size = {size!r} is not allowed: use one of {', '.join(map(repr, SIZES))}")
     plan = SIZES[size]
+    cells_k = tuple(plan.passes if passes is None else passes)
+    cells_l = tuple(plan.lengths if lengths is None else lengths)
     folder = Path(folder or ".")
     started = time.perf_counter()
     rows = []
-    for length in plan.lengths:
-        for passes in plan.passes:
-            for index, change in enumerate(plan.truths):
-                for repeat in range(plan.repeats):
-                    truth = Params(L=length, **change)
-                    row = round_trip(truth, passes, seed=1000 * index + repeat, device=device)
-                    row["change"] = change
+    pool = ProcessPoolExecutor(workers) if workers > 1 else None
+    try:
+        for length in cells_l:
+            for k in cells_k:
+                plan_rows = [(index, change, repeat) for index, change in enumerate(plan.truths)
+                             for repeat in range(plan.repeats)]
+                truths = [Params(L=length, **change) for _, change, _ in plan_rows]
+                seeds = [1000 * index + repeat for index, _, repeat in plan_rows]
+                t0 = time.perf_counter()
+                ensembles = run_specs([_round_trip_spec(t, k, s) for t, s in zip(truths, seeds)], device=device)
+                simulate_s = (time.perf_counter() - t0) / len(ensembles)
+                jobs = [(from_result(e, "accel", window=True), {n: getattr(t, n) for n in KNOWN}, None, 1)
+                        for e, t in zip(ensembles, truths)]
+                del ensembles
+                for (index, change, repeat), seed, row in zip(plan_rows, seeds,
+                                                              (pool.map if pool else map)(_fit_row, jobs)):
+                    row.update(change=change, seed=seed, simulate_s=simulate_s)
                     rows.append(row)
-                    progress(f"K={passes} L={length} {change or 'defaults'} seed {row['seed']}: "
+                    progress(f"K={k} L={length} {change or 'defaults'} seed {seed}: "
                              + " ".join(f"{n} {_fmt_error(n, e)}" for n, e in row["error"].items())
-                             + f" ({row['simulate_s']:.1f}+{row['fit_s']:.1f} s)")
+                             + f" (fit {row['fit_s']:.1f} s)")
+    finally:
+        if pool:
+            pool.shutdown()
     realistic = []
-    for v0 in plan.realistic_speeds:
-        truth = Params(L=plan.realistic_length, v0=v0)
-        row = realistic_case(truth, plan.realistic_passes, seed=7, device=device, folder=folder)
-        realistic.append(row)
-        progress(f"realistic v0={v0}: " + " ".join(f"{n} {_fmt_error(n, e)}" for n, e in row["error"].items()))
+    if passes is None and lengths is None:
+        for v0 in plan.realistic_speeds:
+            truth = Params(L=plan.realistic_length, v0=v0)
+            row = realistic_case(truth, plan.realistic_passes, seed=7, device=device, folder=folder)
+            realistic.append(row)
+            progress(f"realistic v0={v0}: " + " ".join(f"{n} {_fmt_error(n, e)}" for n, e in row["error"].items()))
     return {"size": size, "rows": rows, "summary": summarize(rows), "realistic": realistic, "targets": TARGETS,
-            "known": list(KNOWN) + ["v0"], "seconds": time.perf_counter() - started}
+            "known": list(KNOWN) + ["v0"], "workers": workers, "seconds": time.perf_counter() - started}
 
 
 def _fmt_error(name: str, error: float) -> str:
