@@ -179,7 +179,8 @@ class _Problem:
         self.v0 = v0
         self.load = known.pop("F_N", None)
         self.known = {**known, "v0": v0, **({"F_N": self.load} if self.load is not None else {})}
-        self.free = check_free(default_free(spectrum.quantity, self.known) if free is None else free,
+        leaky = spectrum.dt is not None and not spectrum.window
+        self.free = check_free(default_free(spectrum.quantity, self.known, leaky) if free is None else free,
                                spectrum.quantity, self.known)
         if not self.free:
             raise ParameterError("no free parameter: name at least one (free=[...] or --free)")

@@ -280,9 +280,11 @@ def check_free(free, quantity: str, known: dict) -> list[str]:
     return free
 
 
-def default_free(quantity: str, known: dict) -> list[str]:
+def default_free(quantity: str, known: dict, leaky: bool = False) -> list[str]:
     """The default free set: H, q_min, a and h0 (unless known or fixed by F_N), E_star when the data
-    can tell it (acceleration with m known) and a_jitter. (zeta only matters with the resonance in
+    can tell it (acceleration with m known), a_jitter, and leak for a ``leaky`` spectrum (a
+    simulated one without the window: the open series, and the decoupled wheel's response from
+    rest even on a periodic line, are not periodic). (zeta only matters with the resonance in
     the band, which the default band leaves out: free it when you include it.)"""
     free = [n for n in ("H", "q_min", "a", "h0") if n not in known]
     if "a" in free and "F_N" in known:
@@ -297,4 +299,6 @@ def default_free(quantity: str, known: dict) -> list[str]:
                                  "as known")
     if "a_jitter" not in known:
         free.append("a_jitter")
+    if leaky and "leak" not in known:
+        free.append("leak")
     return free

@@ -110,18 +110,19 @@ def simulation_params(estimates: dict, sim: dict, passes: int) -> Params:
                   q_min=e["q_min"], n_real=passes)
 
 
-def _round_trip_spec(truth: Params, passes: int, seed: int) -> EnsembleSpec:
-    return EnsembleSpec(truth.replace(n_real=passes), seed=seed, realizations=passes, boundary="open", window=True)
+def _round_trip_spec(truth: Params, passes: int, seed: int, boundary: str = "open", window: bool = True):
+    return EnsembleSpec(truth.replace(n_real=passes), seed=seed, realizations=passes, boundary=boundary, window=window)
 
 
 def round_trip(truth: Params, passes: int, seed: int = 0, device: str = "auto", known=KNOWN, band=None,
-               bin: int = 1) -> dict:
-    """Simulate ``passes`` realizations at ``truth`` (open boundary, Hann window, decoupled), invert
-    the acceleration spectrum knowing ``known`` (and v0), compare. Returns one row: the estimates,
-    their 95 % intervals, errors (H absolute, others relative) and whether each interval covers."""
+               bin: int = 1, boundary: str = "open", window: bool = True) -> dict:
+    """Simulate ``passes`` realizations at ``truth`` (decoupled; open boundary with the Hann window
+    unless told otherwise), invert the acceleration spectrum knowing ``known`` (and v0), compare.
+    Returns one row: the estimates, their 95 % intervals, errors (H absolute, others relative)
+    and whether each interval covers."""
     t0 = time.perf_counter()
-    ensemble = run_specs([_round_trip_spec(truth, passes, seed)], device=device)[0]
-    row = _fit_row((from_result(ensemble, "accel", window=True), {k: getattr(truth, k) for k in known}, band, bin))
+    ensemble = run_specs([_round_trip_spec(truth, passes, seed, boundary, window)], device=device)[0]
+    row = _fit_row((from_result(ensemble, "accel", window=window), {k: getattr(truth, k) for k in known}, band, bin))
     row.update(seed=seed, simulate_s=time.perf_counter() - t0 - row["fit_s"])
     return row
 
