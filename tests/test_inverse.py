@@ -159,6 +159,11 @@ def test_cli_invert_bad_input_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "not strictly increasing" in err
     assert main(["invert", str(path), "--band", "a:b"]) == 2
+    assert main(["invert", str(path), "--round-trip"]) == 2  # simulates its own spectra
+    assert main(["invert", "--round-trip", "--workers", "0"]) == 2
+    assert main(["invert"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 4 and "Traceback" not in err
 
 
 def test_profiles_bracket_the_estimate_and_expose_a_degeneracy():

@@ -182,7 +182,9 @@ def run_study(size: str = "quick", device: str = "auto", folder=None, progress=l
     percentile of |error|, coverage of the 95 % intervals) and the total time.
 
     Per (K, L) cell the ensembles run one after the other on ``device`` (:func:`mdroll.run_specs`),
-    then their fits in ``workers`` processes (the fit is NumPy on the host)."""
+    then their fits in ``workers`` processes (the fit is NumPy on the host). The realistic cases
+    run when the plan's (K, L) for them is among the cells."""
+    import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
     from pathlib import Path
 
@@ -194,7 +196,8 @@ def run_study(size: str = "quick", device: str = "auto", folder=None, progress=l
     folder = Path(folder or ".")
     started = time.perf_counter()
     rows = []
-    pool = ProcessPoolExecutor(workers) if workers > 1 else None
+    # spawned, not forked: the parent may hold a CUDA context by the time the workers start
+    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) if workers > 1 else None
     try:
         for length in cells_l:
             for k in cells_k:
@@ -219,7 +222,7 @@ def run_study(size: str = "quick", device: str = "auto", folder=None, progress=l
         if pool:
             pool.shutdown()
     realistic = []
-    if passes is None and lengths is None:
+    if plan.realistic_length in cells_l and plan.realistic_passes in cells_k:
         for v0 in plan.realistic_speeds:
             truth = Params(L=plan.realistic_length, v0=v0)
             row = realistic_case(truth, plan.realistic_passes, seed=7, device=device, folder=folder)
