@@ -20,10 +20,12 @@ window correlates neighbouring bins (Hann: the variance of a sum over bins is 1.
 independent one), and the model is not exact. So the covariance reported is the quasi-likelihood
 one, ``phi * tau * I^-1``, with the Pearson dispersion ``phi = sum z_j^2 / (n - p)`` of the
 standardized residuals ``z_j = sqrt(kappa) (P_j / S_j - 1)`` and ``tau`` their long-run variance
-factor (:func:`long_run_factor`: batch means over blocks of 1 to 256 bins, the largest), which
-covers the correlation of neighbouring bins and a smooth misfit of the model over many bins
-alike; the raw ``I^-1`` intervals are kept as ``ci95_fisher``. Intervals are symmetric in the fitted (log) scale. Profiles: for each free
-parameter, the others re-fitted on a grid of +-4 calibrated standard errors, as the deviance
+factor (:func:`long_run_factor`: batch means over blocks of 1, 2, 4, ... bins while 16 blocks
+fit, the largest), which covers the correlation of neighbouring bins and a smooth misfit of the
+model over many bins alike; the raw ``I^-1`` intervals are kept as ``ci95_fisher``. A cutoff
+(q_min, q_max) is located to within a bin of width dq at best: its variance gets the uniform
+``(dq / q)^2 / 12`` (in log scale) added. Intervals are symmetric in the fitted (log) scale.
+Profiles: for each free parameter, the others re-fitted on a grid of +-4 calibrated standard errors, as the deviance
 difference divided by phi tau; a profile that stays below 3.84 on a side is an open interval
 (a degeneracy or a weakly identified direction).
 
@@ -50,8 +52,9 @@ from .spectrum import Spectrum
 
 Z95 = scipy.stats.norm.ppf(0.975)
 CHI2_95 = scipy.stats.chi2.ppf(0.95, 1)
-#: Block sizes (bins) of the batch-means estimate of the residuals' long-run variance.
-BLOCK_SIZES = (1, 2, 4, 8, 16, 32, 64, 128, 256)
+#: Block sizes (bins) of the batch-means estimate of the residuals' long-run variance: powers of
+#: 2 while at least 16 blocks fit.
+BLOCK_SIZES = tuple(2**i for i in range(24))
 MIN_BINS_PER_PARAMETER = 5
 MIN_BINS = 10
 #: Default top of the band of a simulated spectrum, as a fraction of its Nyquist frequency pi/dt
@@ -324,6 +327,12 @@ def fit(spectrum: Spectrum, known: dict | None = None, free=None, band=None, pas
     information = kappa * jac.T @ jac
     raw_cov, unidentified = _inverse_information(information, problem.free)
     cov = scale * raw_cov
+    for name in ("q_min", "q_max"):  # a cutoff is located to within a bin: its uniform variance
+        if name in problem.free and name not in unidentified:
+            i = problem.free.index(name)
+            resolution = (problem.setting.bin_width / problem.v0 / _from_fitted(name, theta[i])) ** 2 / 12.0
+            cov[i, i] += resolution
+            raw_cov[i, i] += resolution
     sd = np.sqrt(np.abs(np.diag(cov)))
     sd_raw = np.sqrt(np.abs(np.diag(raw_cov)))
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -622,12 +631,24 @@ def _modulation_radius(q, log_psd, default, smallest=1e-3):
 
 
 def find_resonance(omega, data, sharpness: float = 5.0):
-    """The contact resonance of an acceleration spectrum: the bin of the lower half (log) of
-    ``omega`` whose PSD exceeds the median of its +-10 neighbours most, if by ``sharpness`` times
-    (rad/s), else None."""
+    """The contact resonance of an acceleration spectrum (rad/s), or None: among the 500 largest
+    local maxima of the lower half (log) of ``omega``, the one whose PSD exceeds most the larger of the
+    medians over its neighbours within 5 % (at least 3 bins) below and above, if by ``sharpness``
+    times: a resonance falls steeply on both sides; the onset of the high band at q_min v0 and
+    the broad lobes of sin^2(q a) do not."""
     lower = np.flatnonzero(omega <= math.sqrt(omega[0] * omega[-1]))
     if lower.size < 3:
         return None
-    ratio = np.array([data[k] / max(np.median(data[max(0, k - 10):k + 11]), 1e-300) for k in lower])
-    peak = int(lower[int(np.argmax(ratio))])
-    return float(omega[peak]) if ratio.max() >= sharpness and 0 < peak < data.size - 1 else None
+    lower = lower[(lower > 0) & (lower < data.size - 1)]
+    peaks = lower[(data[lower] > data[lower - 1]) & (data[lower] >= data[lower + 1])]
+    candidates = peaks[np.argsort(data[peaks])[-500:]]
+    best, best_ratio = None, 0.0
+    for k in candidates:
+        width = max(3, int(np.searchsorted(omega, 1.05 * omega[k]) - k))
+        left, right = data[max(0, k - width):k], data[k + 1:k + 1 + width]
+        if left.size == 0 or right.size == 0:
+            continue
+        ratio = data[k] / max(float(np.median(left)), float(np.median(right)), 1e-300)
+        if ratio > best_ratio and 0 < k < data.size - 1:
+            best, best_ratio = k, ratio
+    return float(omega[best]) if best is not None and best_ratio >= sharpness else None
