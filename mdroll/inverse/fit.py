@@ -141,7 +141,7 @@ class FitResult:
             lines.append(row)
         g = self.gof
         lines.append(f"bins {g['bins']}, deviance/dof {g['deviance_per_dof']:.3g}, dispersion phi {g['phi']:.3g}, "
-                     f"bin correlation tau {g['tau']:.3g}, KS p {g['ks_p']:.3g}, K = {self.passes}"
+                     f"long-run factor tau {g['tau']:.3g}, KS p {g['ks_p']:.3g}, K = {self.passes}"
                      + (" (assumed)" if self.passes_assumed else ""))
         return "\n".join(lines)
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -112,10 +112,6 @@ class Spectrum:
         step = self.omega[1] - self.omega[0]
         k = self.omega / step
         return bool(np.allclose(k, np.rint(k), atol=1e-6) and np.allclose(np.diff(self.omega), step, rtol=1e-6))
-
-    def with_psd(self, psd, stderr=None) -> "Spectrum":
-        """The same spectrum with other PSD values (a bootstrap or noisy copy)."""
-        return replace(self, psd=psd, stderr=stderr)
 
 
 def _check_frequencies(omega: np.ndarray) -> None:
