@@ -81,8 +81,8 @@ html_theme_options = {
     "footer_end": [],
 }
 html_show_sourcelink = False
-# the single pages have no section navigation: give their width to the text
-html_sidebars = {page: [] for page in ("index", "physics", "performance", "validation", "cli")}
+# the top-level pages have no section navigation: give their width to the text
+html_sidebars = {"*": []}
 html_context = {"default_mode": "light"}
 
 
