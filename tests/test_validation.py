@@ -82,6 +82,17 @@ def test_bad_predictions_are_named(prediction, needle):
         Check("mine", None, prediction, Band(1, 2)).evaluate(s)
 
 
+def test_check_refuses_inconsistent_settings():
+    for kwargs, needle in [({"comparison": "slope", "band": Band(1, 2, "omega_0")}, "measured on q"),
+                           ({"paired": True, "quantity": "accel"}, "paired"),
+                           ({"comparison": "mean"}, "comparison"), ({"allowance": -0.1}, "allowance"),
+                           ({"band": (1, 2)}, "band")]:
+        with pytest.raises(ValueError, match=needle):
+            Check(**{"name": "c", "spec": None, "prediction": lambda q, p: 1.0, "band": Band(1, 2), **kwargs})
+    with pytest.raises(ValueError, match="lo < hi"):
+        Band(2, 1)
+
+
 def test_paired_ratio_by_hand():
     x = np.array([2.0, 4.0, 6.0])
     ratio, rel = paired_ratio(x, np.array([1.0, 2.0, 3.0]))

@@ -180,6 +180,11 @@ class Check:
         if not (self.allowance >= 0 and self.k >= 0 and math.isfinite(self.allowance) and math.isfinite(self.k)):
             raise ParameterError(f"check {self.name!r}: allowance = {self.allowance!r} and k = {self.k!r} must be "
                                  "finite and >= 0")
+        if not isinstance(self.band, Band):
+            raise ParameterError(f"check {self.name!r}: band = {self.band!r} must be a mdroll.validation.Band")
+        if self.comparison in ("slope", "period") and self.band.on_omega:
+            raise ParameterError(f"check {self.name!r}: a {self.comparison} is measured on q: give its band in q_min "
+                                 f"or rad/m, not {self.band.unit}")
         if self.paired and self.quantity != "force":
             raise ParameterError(f"check {self.name!r}: paired = True needs quantity = 'force' (per-realization rows "
                                  "are kept of the force PSD)")
