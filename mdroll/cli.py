@@ -712,8 +712,12 @@ def cmd_invert(args) -> int:
         json.dump({"source": str(path), **result.to_dict()}, file, indent=1)
     print(result.table())
     if result.bootstrap:
-        for name, (lo, hi) in result.bootstrap["ci95"].items():
-            print(f"  bootstrap 95% {name:<9} {lo:.6g} .. {hi:.6g}")
+        b = result.bootstrap
+        print(f"bootstrap ({b['replicates']} replicates): percentile 95%, bias, bias-corrected estimate, basic 95%")
+        for name, (lo, hi) in b["ci95"].items():
+            low, high = b["ci95_basic"][name]
+            print(f"  {name:<9} {lo:.6g} .. {hi:.6g}  {b['bias'][name]:+.4g}  {b['bias_corrected'][name]:.6g}  "
+                  f"{low:.6g} .. {high:.6g}")
     print(f"wrote {out}/: inverse.json inverse.png")
     return 0
 

@@ -184,3 +184,23 @@ def test_profiles_bracket_the_estimate_and_expose_a_degeneracy():
                profile_points=5)
     assert flat.profiles["R"]["ci95"] == [None, None]  # above q_min nothing depends on R
     assert flat.gof["unidentified"] == ["R"] and flat.ci95["R"] == (0.0, math.inf)
+
+
+def test_bootstrap_refits_simulations_at_the_estimate():
+    """Two replicates at the estimate of a small windowed ensemble: the replicates' H and a lie near
+    the estimate, the simulated q_min is on the line's grid, and the intervals are ordered."""
+    from mdroll.inverse.roundtrip import bootstrap
+
+    p = mdroll.Params(L=0.3, n_real=4)
+    spectrum = from_result(mdroll.EnsembleSpec(p, seed=9, realizations=4, window=True).run(device="cpu"), window=True)
+    r = fit(spectrum, known={"m": 500, "R": 0.5, "E": 210e9, "q_min": p.q_min}, free=["H", "a", "h0", "a_jitter"],
+            profile=False)
+    b = bootstrap(spectrum, r, 2, device="cpu")
+    assert b["replicates"] == 2 and len(b["estimates"]["H"]) == 2
+    assert all(abs(h - r.estimates["H"]) < 0.05 for h in b["estimates"]["H"])
+    assert all(abs(a / r.estimates["a"] - 1) < 1e-3 for a in b["estimates"]["a"])
+    dq = 2 * math.pi / mdroll.Params(L=0.3).length
+    assert b["params"]["q_min"] / dq == pytest.approx(round(b["params"]["q_min"] / dq), abs=1e-9)
+    for name in r.free:
+        lo, hi = b["ci95"][name]
+        assert lo <= hi and math.isfinite(b["bias"][name])

@@ -74,9 +74,11 @@ def bootstrap(spectrum, result, replicates: int, device: str = "auto", seed: int
     """Parametric bootstrap: simulate ``replicates`` ensembles with mdroll at the estimate (K passes
     each, the spectrum's own L, dx, boundary and window; seeds ``seed + i``) through
     :func:`mdroll.run_specs`, refit each like the original, and report per free parameter the
-    replicates' estimates, their 2.5 and 97.5 percentiles (the percentile interval) and their
-    mean less the estimate (the estimator's bias there). Only for mdroll spectra (the
-    simulation's L, dx and boundary are needed)."""
+    replicates' estimates, their 2.5 and 97.5 percentiles (the percentile interval ``ci95``),
+    their mean less the simulated value (the estimator's ``bias`` there), the estimate less that
+    bias (``bias_corrected``) and the basic interval ``ci95_basic`` (the percentiles reflected
+    about the simulated value and shifted to the estimate), which covers when the bias is the
+    same at the truth. Only for mdroll spectra (the simulation's L, dx and boundary are needed)."""
     sim = spectrum.simulation
     if not sim:
         raise ParameterError("the bootstrap simulates at the estimate and needs the simulation's L and dx: it is "
@@ -94,20 +96,29 @@ def bootstrap(spectrum, result, replicates: int, device: str = "auto", seed: int
                     band=result.band, passes=result.passes, bin=bin, start=start, profile=False)
         for n in result.free:
             estimates[n].append(refit.estimates[n])
-    return {"replicates": replicates, "seed": seed, "params": params.as_dict(),
-            "estimates": estimates,
-            "bias": {n: float(np.mean(v)) - result.estimates[n] for n, v in estimates.items()},
-            "ci95": {n: [float(np.percentile(v, 2.5)), float(np.percentile(v, 97.5))] for n, v in estimates.items()}}
+    centre = {n: result.estimates[n] for n in estimates}
+    if "q_min" in centre:  # the simulation's q_min is the grid's (see simulation_params)
+        centre["q_min"] = params.q_min
+    bias = {n: float(np.mean(v)) - centre[n] for n, v in estimates.items()}
+    ci = {n: [float(np.percentile(v, 2.5)), float(np.percentile(v, 97.5))] for n, v in estimates.items()}
+    return {"replicates": replicates, "seed": seed, "params": params.as_dict(), "estimates": estimates,
+            "bias": bias, "ci95": ci,
+            "bias_corrected": {n: result.estimates[n] - bias[n] for n in estimates},
+            "ci95_basic": {n: [result.estimates[n] - (hi - centre[n]), result.estimates[n] - (lo - centre[n])]
+                           for n, (lo, hi) in ci.items()}}
 
 
 def simulation_params(estimates: dict, sim: dict, passes: int) -> Params:
     """The Params of a simulation at ``estimates`` (SI, with v0): E from E* with the simulation's nu
-    (eq 1-2), F_N = 4 a^3 E* / (3 R) (eq 14-15), the simulation's L and dx."""
+    (eq 1-2), F_N = 4 a^3 E* / (3 R) (eq 14-15), the simulation's L and dx, q_min on the line's
+    grid (the nearest 2 pi k / L)."""
     e = estimates
     E = e["E_star"] * 2.0 * (1.0 - sim["nu"] ** 2)
+    # the lines hold the grid's modes 2 pi k / L only: q_min on the grid point nearest the estimate
+    dq = TWO_PI / (round(sim["L"] / sim["dx"]) * sim["dx"])
     return Params(E=E, nu=sim["nu"], R=e["R"], m=e["m"], F_N=load_times_radius(e["a"], e["E_star"]) / e["R"],
                   v0=e["v0"], L=sim["L"], dx=sim["dx"], h0=e["h0"], H=e["H"],
-                  q_min=e["q_min"], n_real=passes)
+                  q_min=max(1, round(e["q_min"] / dq)) * dq, n_real=passes)
 
 
 def _round_trip_spec(truth: Params, passes: int, seed: int, boundary: str = "open", window: bool = True):
