@@ -37,7 +37,8 @@ extensions = [
 ]
 
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
-exclude_patterns = ["_build", "_templates", "examples"]
+# the pages are docs/*.md; Markdown in subfolders is data a page includes or links (docs/inverse/)
+exclude_patterns = ["_build", "_templates", "examples", "*/*.md", "*/**/*.md"]
 suppress_warnings = ["myst.header"]
 
 # MyST: $...$ and $$...$$ math, \begin{equation} blocks, heading anchors for links
