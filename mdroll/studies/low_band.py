@@ -253,7 +253,7 @@ EXAMPLE_TRANSITION_RAD_S = 30000.0
 
 
 def rms_force(run, L: float, dx: float, realizations: int) -> StudyOutcome:
-    """Eq 59-61: the RMS force in the plateau band of the thesis's example (band 0 < omega <= 2000
+    """The thesis's eq 59-61: the RMS force in the plateau band of the thesis's example (band 0 < omega <= 2000
     rad/s, q_min v0 = 30000 rad/s, defaults otherwise), measured as ``sqrt(2 sum C_F(q_k) dq)`` (the
     RMS of the band-passed force: both signs of q, physics.md's convention) against eq 60-61's
     "about 1 N" and the closed form."""

@@ -13,7 +13,7 @@ from ..params import Params
 
 
 def high_band(p: Params, q) -> np.ndarray:
-    """Eq 40: force PSD (N^2 m) of the linear contact at wavenumbers ``q`` (rad/m)."""
+    """Force PSD (N^2 m) of the linear contact at wavenumbers ``q`` (rad/m): eq 40 for ``p``."""
     return physics.force_psd_high_band(q, p.lambda_A, p.H, p.q_min, p.q_max, p.E_star, p.a)
 
 
@@ -35,12 +35,12 @@ def low_band(p: Params, q, psd_of_line: np.ndarray | None = None) -> np.ndarray:
 
 
 def plateau_thesis(p: Params) -> float:
-    """Eq 56/58: the thesis's plateau C_F0 (N^2 m, its own normalization)."""
+    """The thesis's plateau C_F0 (N^2 m, its own normalization): eq 56/58 for ``p``."""
     return physics.force_psd_plateau_thesis(p.E_star, p.R, p.h0, p.H, p.a, p.q_min)
 
 
 def band_rms_thesis(p: Params, dq: float) -> float:
-    """Eq 60: the thesis's RMS force (N) in a low band of width ``dq`` (rad/m)."""
+    """The thesis's RMS force (N) in a low band of width ``dq`` (rad/m): eq 60 for ``p``."""
     return physics.band_rms_force_thesis(p.E_star, p.R, p.h0, p.H, p.a, p.q_min, dq)
 
 

@@ -31,7 +31,7 @@ def _per_omega(result, quantity: str):
 
 
 def transition_claim(result, label: str) -> tuple[Claim, dict]:
-    """Eq 21 on a periodic run: the first bin where the force PSD exceeds TRANSITION_FACTOR times
+    """The transition of eq 21 on a periodic run: the first bin where the force PSD exceeds TRANSITION_FACTOR times
     the median low band on [q_min/2, q_min), against q_min v0. The sin^2(q a) factor of eq 40 can
     hold the first bins above q_min under the threshold: that delay is predicted from eq 40 plus
     the measured low band and allowed for, with half a bin of quantization."""
@@ -266,7 +266,7 @@ def fit_modulation(result, q_hi_factor: float = 24.0) -> tuple[float, float, flo
 
 
 def window_transform_check(a: float, dx: float, length: float = 0.2) -> dict:
-    """Eq 27: the DFT of g(x) = a^2 - x^2 on |x| < a (sampled on x_i = i dx, centred, over
+    """The contact-geometry function of eq 27: the DFT of g(x) = a^2 - x^2 on |x| < a (sampled on x_i = i dx, centred, over
     ``length`` m) against its transform G(q) = 4 (sin qa - qa cos qa) / q^3, and the modulation
     period of |G|^2 by autocorrelation (rad/m)."""
     n = int(round(length / dx))
