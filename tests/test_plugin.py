@@ -24,7 +24,7 @@ def test_doubled_law(mdroll_ensemble):
 
 def _pytest(*args, cwd, cache):
     # the plugin by -p, as a CI that has not installed mdroll's entry points would (autoload off: no double load)
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(EXAMPLE), str(ROOT)]), "PYTEST_DISABLE_PLUGIN_AUTOLOAD": "1",
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(EXAMPLE), str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]), "PYTEST_DISABLE_PLUGIN_AUTOLOAD": "1",
            "MDROLL_CACHE_DIR": str(cache)}
     return subprocess.run([sys.executable, "-m", "pytest", "-p", "mdroll.testing.plugin", "-p", "no:cacheprovider",
                            "-rN", *args], capture_output=True, text=True, cwd=cwd, env=env, timeout=300)

@@ -197,7 +197,7 @@ def test_split_across_processes_and_merged(quick_plots, tmp_path, capsys):
     directory, only the last survived, and merge refused the unequal counts): each keeps its own
     locked directory and the merge is the whole ensemble."""
     common = ["--set", "L=0.05", "--device", "cpu", "--no-progress", "--seed", "4"]
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
     procs = [subprocess.Popen([sys.executable, "-m", "mdroll", "run", "--first", str(first), "--realizations", str(count),
                                *common], cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
              for first, count in ((0, 4), (4, 2))]
