@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# What the GPU machine runs for the recorded results (benchmarks/results/, validation/results/):
+# What the GPU machine runs for the recorded results (benchmarks/results/, docs/validation/full_H200/):
 # the test suite on CPU + CUDA, the full validation, the full scaling study.
 #   OUT=dir bash benchmarks/gpu_session.sh [tests|validate|bench]...
 set -uo pipefail
