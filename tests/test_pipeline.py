@@ -237,20 +237,29 @@ def test_series_sums_against_numpy_and_a_sequential_loop(device):
 
 def test_resumed_run_continues_on_the_device(device, tmp_path, monkeypatch):
     """A run stopped after its first batch, resumed from its checkpoint (moments saved on the
-    host), equals the uninterrupted run on the same device."""
+    host), equals the uninterrupted run on the same device: it goes on with the batches the
+    interrupted run had planned (a checkpointed run's first batch holds one realization), so the
+    moments are merged in the same groups."""
     from mdroll.ensemble import pipeline
 
     class Stop(Exception):
         pass
 
+    split = pipeline._cpu_parts
+    batches = []  # realizations of each batch, in order
+
+    def recorded(idx, threads):
+        batches.append(len(idx))
+        return split(idx, threads)
+
+    monkeypatch.setattr(pipeline, "_cpu_parts", recorded)
     # the uninterrupted run with a checkpoint too: its batches are then planned the same way
     full = run_ensemble(P, seed=6, device=device, progress=False, batch=2, checkpoint=tmp_path / "full.npz")
+    planned, batches[:] = list(batches), []
     original = pipeline.psd_moments_of_batch
-    calls = []
 
     def stop_at_the_second_batch(*args, **kwargs):
-        calls.append(1)
-        if len(calls) == 2:
+        if len(batches) == 2:
             raise Stop
         return original(*args, **kwargs)
 
@@ -259,7 +268,9 @@ def test_resumed_run_continues_on_the_device(device, tmp_path, monkeypatch):
     with pytest.raises(Stop):
         run_ensemble(P, seed=6, device=device, progress=False, batch=2, checkpoint=checkpoint)
     monkeypatch.setattr(pipeline, "psd_moments_of_batch", original)
+    del batches[1:]  # the batch that was stopped
     resumed = run_ensemble(P, seed=6, device=device, progress=False, batch=2, checkpoint=checkpoint, resume=True)
+    assert planned[0] == 1 and batches == planned, (planned, batches)
     for name in ("force_psd", "force_psd_stderr", "accel_psd", "accel_psd_stderr"):
         np.testing.assert_allclose(getattr(resumed, name), getattr(full, name), rtol=1e-12)
     np.testing.assert_array_equal(resumed.q, full.q)

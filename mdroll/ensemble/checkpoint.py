@@ -41,6 +41,7 @@ class RunTotals:
     timings: dict = field(default_factory=lambda: dict.fromkeys(STAGES, 0.0))
     batch: int = 0  # the run's batch size: the most realizations at once, which a resumed run keeps
     largest_batch: int = 0  # the most realizations a batch has held so far
+    next_batch: int = 1  # the size planned for the next batch (a resumed run starts with it)
 
     def add_moments(self, rows: int, force_moments, accel_moments) -> None:
         """Merge a batch's PSD moments (:func:`~mdroll.ensemble.spectra.psd_moments_of_batch`) of
@@ -85,6 +86,7 @@ class RunTotals:
         meta = {**key, "done": self.done, "steps": self.steps, "force_mean_sum": self.force_mean_sum,
                 "force_rms_sum": self.force_rms_sum, "lost": self.lost, "timings": self.timings, "count": self.force.count,
                 "batch": self.batch, "largest_batch": self.largest_batch,
+                "next_batch": self.next_batch,
                 "versions": {"mdroll": __version__, "warp": warp().config.version, "numpy": np.__version__}}
         with atomic_write(path) as file:
             np.savez(file, meta=json.dumps(meta), force_mean=self.force.mean, force_m2=self.force.m2,
@@ -102,7 +104,8 @@ class RunTotals:
             raise ParameterError(f"cannot resume {path}: the run differs from the checkpoint: " + "; ".join(differences))
         totals = cls(done=meta["done"], steps=meta["steps"], force_mean_sum=meta["force_mean_sum"],
                      force_rms_sum=meta["force_rms_sum"], lost=meta["lost"], timings=meta["timings"],
-                     batch=meta["batch"], largest_batch=meta["largest_batch"])
+                     batch=meta["batch"], largest_batch=meta["largest_batch"],
+                     next_batch=meta["next_batch"])
         totals.force, totals.accel = RunningMoments(arrays["force_mean"].size), RunningMoments(arrays["accel_mean"].size)
         totals.force.merge(meta["count"], arrays["force_mean"], arrays["force_m2"])
         totals.accel.merge(meta["count"], arrays["accel_mean"], arrays["accel_m2"])
@@ -111,7 +114,7 @@ class RunTotals:
 
 #: What a checkpoint's metadata and arrays must hold.
 CHECKPOINT_META = ("params", "seed", "realizations", "done", "steps", "force_mean_sum", "force_rms_sum", "lost",
-                   "timings", "count", "batch", "largest_batch", "versions")
+                   "timings", "count", "batch", "largest_batch", "next_batch", "versions")
 CHECKPOINT_ARRAYS = ("force_mean", "force_m2", "accel_mean", "accel_m2")
 
 

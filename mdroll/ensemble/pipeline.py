@@ -213,7 +213,10 @@ def run_ensemble(
 
     rows = None
     start = totals.done
-    size = batch if checkpoint is None else 1
+    # with a checkpoint the first batch holds one realization, to time it; a resumed run goes on
+    # with the size its last batch planned, so that its batches, and the rounding of their
+    # merged moments, are the uninterrupted run's
+    size = batch if checkpoint is None else min(batch, totals.next_batch)
     while start < len(indices):
         began = time.perf_counter()
         idx = indices[start:start + size]
@@ -238,10 +241,10 @@ def run_ensemble(
             totals.add_sums(host_sums, params.F_N)
         totals.largest_batch = max(totals.largest_batch, len(idx))
         if checkpoint is not None:
-            totals.save(checkpoint, key)
             # the next batch: what this one's rate does in CHECKPOINT_SECONDS, within the memory's batch
             rate = len(idx) / max(time.perf_counter() - began, 1e-9)
-            size = int(min(batch, max(1, rate * CHECKPOINT_SECONDS)))
+            size = totals.next_batch = int(min(batch, max(1, rate * CHECKPOINT_SECONDS)))
+            totals.save(checkpoint, key)
         bar.update(len(idx))
         start += len(idx)
         del outputs
