@@ -30,18 +30,6 @@ def _pyfftw():
     return pyfftw.interfaces.numpy_fft
 
 
-def _aligned_copy():
-    """``pyfftw.byte_align``: the row itself when it sits on FFTW's SIMD alignment, else an aligned
-    copy. FFTW picks its plan (and SIMD codelets) by the input's alignment, so without this a row's
-    transform, and its rounding, would depend on where the row lies in its batch (row r of an
-    (R, n) array is offset by r n 8 bytes): ~1e-12 relative in the weakest bins of a spectrum,
-    enough to make a resumed run differ from the uninterrupted one. A fresh alignment also costs
-    a new plan (17-70 ms a transform, measured)."""
-    import pyfftw
-
-    return pyfftw.byte_align
-
-
 def fast_length(limit: int) -> int:
     """The largest ``2^a 3^b 5^c <= limit`` (limit >= 1): a length both cuFFT and FFTW transform
     at full speed. On an H200, cuFFT's real FFT of 300 rows of 1,046,492 = 4 x 397 x 659 points
@@ -120,10 +108,10 @@ def irfft_rows(spectrum, n: int, device: str):
     x = spectrum.numpy() if isinstance(spectrum, wp.array) else np.asarray(spectrum)
     if x.dtype != np.complex128:
         x = x.view(np.complex128).reshape(x.shape[0], -1)
-    fft, aligned = _pyfftw(), _aligned_copy()
+    fft = _pyfftw()
     out = np.empty((x.shape[0], n))
     for i, row in enumerate(x):
-        out[i] = fft.irfft(aligned(row), n=n, norm="forward", threads=_threads(), planner_effort="FFTW_ESTIMATE")
+        out[i] = fft.irfft(row, n=n, norm="forward", threads=_threads(), planner_effort="FFTW_ESTIMATE")
     return out
 
 
@@ -135,8 +123,8 @@ def rfft_rows(x, device: str):
         with cupy_stream(device):
             return cupy.fft.rfft(cupy_view(x), axis=-1)
     x = x.numpy() if isinstance(x, warp().array) else np.asarray(x)
-    fft, aligned = _pyfftw(), _aligned_copy()
+    fft = _pyfftw()
     out = np.empty((x.shape[0], x.shape[1] // 2 + 1), dtype=np.complex128)
     for i, row in enumerate(x):
-        out[i] = fft.rfft(aligned(row), threads=_threads(), planner_effort="FFTW_ESTIMATE")
+        out[i] = fft.rfft(row, threads=_threads(), planner_effort="FFTW_ESTIMATE")
     return out
