@@ -17,7 +17,6 @@ import secrets
 import signal
 import sys
 import tempfile
-import tomllib
 from pathlib import Path
 
 from .ensemble.algorithms import ALGORITHMS, DEFAULT_ALGORITHMS, REGISTRY
@@ -56,13 +55,9 @@ def load_config(path: str) -> dict:
     """Parameters from a TOML file: top-level keys, or a ``[params]`` table alone; anything else
     (unknown keys, other tables, top-level keys beside ``[params]``, a ``params`` that is not a
     table) is refused, naming the key."""
-    file = Path(path)
-    if not file.is_file():
-        raise UsageError(f"config file {path!r} does not exist")
-    try:
-        data = tomllib.loads(file.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise UsageError(f"config file {path}: {exc}") from None
+    from .files import read_toml
+
+    data = read_toml(path, "config file", UsageError)
     if "params" in data:
         if not isinstance(data["params"], dict):
             raise UsageError(f"config file {path}: 'params' must be a [params] table of parameters, "

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import os
 import tempfile
+import tomllib
 from pathlib import Path
 
 # the process's umask, read once (os.umask can only be read by setting it): the permissions an
@@ -32,3 +33,15 @@ def atomic_write(path, mode: str = "wb"):
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
+
+
+def read_toml(path, what: str, error: type[Exception] = ValueError) -> dict:
+    """The tables of the TOML file ``path``, or ``error`` with one line naming the file as
+    ``what`` (e.g. "config file") when it does not exist or is not valid TOML (or not UTF-8)."""
+    file = Path(path)
+    if not file.is_file():
+        raise error(f"{what} {str(path)!r} does not exist")
+    try:
+        return tomllib.loads(file.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise error(f"{what} {path}: not valid TOML ({exc})") from None

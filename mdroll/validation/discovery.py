@@ -37,11 +37,10 @@ import dataclasses
 import importlib
 import math
 import inspect
-import tomllib
 from importlib.metadata import entry_points
-from pathlib import Path
 
 from ..ensemble.spec import EnsembleSpec
+from ..files import read_toml
 from ..params import ParameterError, Params
 from .api import Band, Check, CheckResult, PredictionError
 from .checks import CHECKS, SIZES, Context, ValidationSize
@@ -95,13 +94,7 @@ def _spec(table: dict, where: str) -> EnsembleSpec:
 
 def checks_from_toml(path) -> list[Check]:
     """The checks of a TOML file (schema in the module docstring) and its ``providers``."""
-    file = Path(path)
-    if not file.is_file():
-        raise ParameterError(f"checks file {str(path)!r} does not exist")
-    try:
-        data = tomllib.loads(file.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise ParameterError(f"checks file {path}: not valid TOML ({exc})") from None
+    data = read_toml(path, "checks file", ParameterError)
     unknown = set(data) - {"check", "providers"}
     if unknown:
         raise ParameterError(f"checks file {path}: unknown top-level key(s) {sorted(unknown)}; allowed: check, providers")
