@@ -168,6 +168,8 @@ def _parser() -> argparse.ArgumentParser:
     p_inv.add_argument("--bin", type=int, default=1, help="average this many neighbouring bins (default 1)")
     p_inv.add_argument("--bootstrap", type=int, default=0, metavar="N", help="parametric bootstrap replicates (mdroll "
                        "spectra only)")
+    p_inv.add_argument("--scheduler", metavar="ADDRESS", help="run the bootstrap's ensembles on an existing Dask "
+                       "cluster (tcp://host:8786)")
     p_inv.add_argument("--no-profile", action="store_true", help="skip the profile likelihoods")
     p_inv.add_argument("--device", default="auto", help="device of the bootstrap's and round trip's simulations")
     p_inv.add_argument("--round-trip", action="store_true", help="run the round-trip study instead: roundtrip.json, "
@@ -697,7 +699,12 @@ def cmd_invert(args) -> int:
     if args.bootstrap:
         from .inverse.roundtrip import bootstrap
 
-        result.bootstrap = bootstrap(spectrum, result, args.bootstrap, device=resolve_device(args.device), bin=args.bin)
+        # the replicates' ensembles on an existing Dask cluster with --scheduler (--workers is the
+        # round trip's fit processes here)
+        cluster = argparse.Namespace(workers=None, scheduler=args.scheduler, device=args.device)
+        with cluster_runner(cluster) as (runner, device):
+            result.bootstrap = bootstrap(spectrum, result, args.bootstrap, device=resolve_device(device)
+                                         if runner is None else device, bin=args.bin, runner=runner)
     out = _output_dir(args, clear=INVERT_OUTPUTS)
     from .inverse.plot import plot_fit
 

@@ -204,3 +204,40 @@ def test_bootstrap_refits_simulations_at_the_estimate():
     for name in r.free:
         lo, hi = b["ci95"][name]
         assert lo <= hi and math.isfinite(b["bias"][name])
+
+
+def test_bootstrap_runs_its_ensembles_through_a_given_runner():
+    """The bootstrap's replicates go through run_specs(..., runner=) (the plug-in of the Dask
+    runner): a runner that records the specs and runs them here gives the in-process bootstrap."""
+    from mdroll.inverse.roundtrip import bootstrap
+
+    class Recording:
+        def __init__(self):
+            self.specs = []
+
+        def run_specs(self, specs, device, progress, **options):
+            specs = list(specs)
+            self.specs += specs
+            return mdroll.run_specs(specs, device=device, progress=progress, **options)
+
+    p = mdroll.Params(L=0.3, n_real=4)
+    spectrum = from_result(mdroll.EnsembleSpec(p, seed=9, realizations=4, window=True).run(device="cpu"), window=True)
+    r = fit(spectrum, known={"m": 500, "R": 0.5, "E": 210e9, "q_min": p.q_min}, free=["H", "a", "h0", "a_jitter"],
+            profile=False)
+    runner = Recording()
+    through = bootstrap(spectrum, r, 2, device="cpu", runner=runner)
+    here = bootstrap(spectrum, r, 2, device="cpu")
+    assert [s.seed for s in runner.specs] == [1_000_003, 1_000_004] and all(s.window for s in runner.specs)
+    for name in r.free:
+        assert through["estimates"][name] == pytest.approx(here["estimates"][name], rel=1e-12)
+
+
+def test_invert_bootstrap_scheduler_unreachable_is_one_line(tmp_path, capsys):
+    from mdroll.cli import main
+
+    p = mdroll.Params(L=0.3, n_real=4)
+    mdroll.EnsembleSpec(p, seed=9, realizations=4, window=True).run(device="cpu").save(tmp_path / "spectra.npz")
+    code = main(["invert", str(tmp_path / "spectra.npz"), "--window", "--known", "m=500", "--known", "R=0.5",
+                 "--bootstrap", "2", "--no-profile", "--scheduler", "tcp://127.0.0.1:9", "--out", str(tmp_path / "inv")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "scheduler" in err[0]

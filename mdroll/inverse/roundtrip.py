@@ -70,7 +70,8 @@ SIZES = {
 }
 
 
-def bootstrap(spectrum, result, replicates: int, device: str = "auto", seed: int = 1_000_003, bin: int = 1) -> dict:
+def bootstrap(spectrum, result, replicates: int, device: str = "auto", seed: int = 1_000_003, bin: int = 1,
+              runner=None) -> dict:
     """Parametric bootstrap: simulate ``replicates`` ensembles with mdroll at the estimate (K passes
     each, the spectrum's own L, dx, boundary and window; seeds ``seed + i``) through
     :func:`mdroll.run_specs`, refit each like the original, and report per free parameter the
@@ -78,7 +79,9 @@ def bootstrap(spectrum, result, replicates: int, device: str = "auto", seed: int
     their mean less the simulated value (the estimator's ``bias`` there), the estimate less that
     bias (``bias_corrected``) and the basic interval ``ci95_basic`` (the percentiles reflected
     about the simulated value and shifted to the estimate), which covers when the bias is the
-    same at the truth. Only for mdroll spectra (the simulation's L, dx and boundary are needed)."""
+    same at the truth. Only for mdroll spectra (the simulation's L, dx and boundary are needed).
+    ``runner``: where the replicates' ensembles run (``run_specs(..., runner=)``, e.g. a
+    :class:`mdroll.distributed.DaskRunner`); None: in this process on ``device``."""
     sim = spectrum.simulation
     if not sim:
         raise ParameterError("the bootstrap simulates at the estimate and needs the simulation's L and dx: it is "
@@ -91,7 +94,7 @@ def bootstrap(spectrum, result, replicates: int, device: str = "auto", seed: int
              for i in range(replicates)]
     start = {n: result.estimates[n] for n in result.free}
     estimates = {n: [] for n in result.free}
-    for ensemble in run_specs(specs, device=device):
+    for ensemble in run_specs(specs, device=device, runner=runner):
         refit = fit(from_result(ensemble, spectrum.quantity, spectrum.window), known=result.known, free=result.free,
                     band=result.band, passes=result.passes, bin=bin, start=start, profile=False)
         for n in result.free:
