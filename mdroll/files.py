@@ -1,12 +1,16 @@
-"""Atomic file output: a file is either the old one or the complete new one, never a part."""
+"""Output files: atomic writes (a file is either the old one or the complete new one, never a
+part), TOML input with one-line errors, and values made JSON-ready."""
 
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import tempfile
 import tomllib
 from pathlib import Path
+
+import numpy as np
 
 # the process's umask, read once (os.umask can only be read by setting it): the permissions an
 # ordinary open() would give, for mkstemp's private 0600 temporary file
@@ -45,3 +49,19 @@ def read_toml(path, what: str, error: type[Exception] = ValueError) -> dict:
         return tomllib.loads(file.read_text())
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise error(f"{what} {path}: not valid TOML ({exc})") from None
+
+
+def jsonable(value):
+    """``value`` as JSON values: NumPy scalars and arrays as numbers and lists, tuples as lists,
+    dict keys as strings, non-finite floats (nan, inf) as null."""
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, (np.floating, float)):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    return value

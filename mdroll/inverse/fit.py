@@ -43,10 +43,10 @@ import scipy.ndimage
 import scipy.optimize
 import scipy.stats
 
+from ..files import jsonable
 from ..params import ParameterError
-from .. import physics
 from ..physics import TWO_PI
-from .model import (KNOWN_ONLY, NUISANCE_DEFAULTS, PARAMETERS, Setting, check_free, contact_radius_from_load,
+from .model import (NUISANCE_DEFAULTS, PARAMETERS, Setting, check_free, contact_radius_from_load,
                     default_free, derived, expected_psd, lambda_A, resolve_known)
 from .spectrum import Spectrum
 
@@ -121,7 +121,7 @@ class FitResult:
             "convention": "two-sided PSD per rad/s on omega (rad/s)",
             "omega": self.omega.tolist(), "data": self.data.tolist(), "model": self.model.tolist(),
         }
-        return _jsonable(out)
+        return jsonable(out)
 
     def table(self) -> str:
         """The estimates as a text table: value, 95 % interval (calibrated), truth when known."""
@@ -148,21 +148,6 @@ class FitResult:
 
 def _error(name: str, value: float, truth: float) -> str:
     return f"{value - truth:+.3f}" if name == "H" else f"{100 * (value / truth - 1):+.2f}%"
-
-
-def _jsonable(value):
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _jsonable(value.tolist())
-    if isinstance(value, (np.floating, float)):
-        value = float(value)
-        return value if math.isfinite(value) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    return value
 
 
 class _Problem:

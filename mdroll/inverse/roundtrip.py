@@ -12,7 +12,6 @@ q_min, a, h0, E* and the nuisance a_jitter (and the noise floor in the realistic
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 

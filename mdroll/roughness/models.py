@@ -35,7 +35,6 @@ and converts explicitly (:meth:`RoughnessSpectrum.mdr_psd`, :meth:`RoughnessSpec
 
 from __future__ import annotations
 
-import csv
 import math
 from collections.abc import Callable
 from pathlib import Path

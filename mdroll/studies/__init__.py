@@ -18,7 +18,8 @@ from typing import Callable
 from ..devices import resolve_device
 from ..params import ParameterError
 from . import coupling, low_band, spectrum, taper
-from .core import AGREES, DISAGREES, REPORTED, UNRESOLVED, Claim, Runner, git_commit, jsonable
+from ..files import jsonable
+from .core import AGREES, DISAGREES, REPORTED, UNRESOLVED, Claim, Runner, git_commit
 
 #: Thesis-scale line: 2^20 springs of 5 um (the thesis's 5 m, rounded up to a fast FFT length).
 THESIS = {"L": 5.24288, "dx": 5e-6}

@@ -173,21 +173,6 @@ def git_commit() -> str | None:
         return None
 
 
-def jsonable(value):
-    """NumPy scalars and arrays, tuples and non-finite floats as JSON values (nan/inf -> null)."""
-    if isinstance(value, dict):
-        return {str(k): jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return jsonable(value.tolist())
-    if isinstance(value, (np.floating, float)):
-        return float(value) if math.isfinite(value) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    return value
-
-
 # ---------------------------------------------------------------------------- plots
 def loglog(ax, x, y, err=None, label=None, **style):
     """Log-log curve of the positive points of ``y`` on ``x`` with a +-1 standard-error band."""
