@@ -17,17 +17,55 @@ import threading
 import numpy as np
 
 from ..devices import cpu_cores, cupy_stream, cupy_view, is_cuda, warp
+from . import buffers
 
 
-@functools.cache
-def _pyfftw():
+#: FFTW plans kept per Python thread (each with its own aligned rows to fall back on).
+CPU_PLANS = 4
+_plans = threading.local()
+
+
+def _cpu_plan(kind: str, n: int):
+    """This thread's FFTW plan of one row, ``"irfft"`` (half spectrum of n // 2 + 1 -> n reals)
+    or ``"rfft"`` (n reals -> half spectrum), on ``_threads()`` FFTW threads; run by ``execute``,
+    which never scales (pyfftw's ``__call__`` would).
+
+    Planned as pyfftw's ``interfaces.numpy_fft`` plans them (FFTW_ESTIMATE, input preserved,
+    SIMD-aligned rows), so a line is the same to the bit as before the plans were kept here
+    (and whatever the FFTW threads). Kept per thread: a plan runs on one thread's rows at a time."""
     import pyfftw
-    import pyfftw.interfaces.cache
-    import pyfftw.interfaces.numpy_fft
 
-    pyfftw.interfaces.cache.enable()
-    pyfftw.interfaces.cache.set_keepalive_time(60.0)
-    return pyfftw.interfaces.numpy_fft
+    plans = _plans.__dict__.setdefault("plans", {})
+    key = (kind, n, _threads())
+    plan = plans.pop(key, None)
+    if plan is None:
+        real = pyfftw.empty_aligned(n, dtype=np.float64)
+        half = pyfftw.empty_aligned(n // 2 + 1, dtype=np.complex128)
+        if kind == "irfft":
+            plan = pyfftw.FFTW(half, real, direction="FFTW_BACKWARD", flags=("FFTW_ESTIMATE",), threads=key[2])
+        else:
+            plan = pyfftw.FFTW(real, half, direction="FFTW_FORWARD", flags=("FFTW_ESTIMATE",), threads=key[2])
+        plan = (plan, plan.input_array, plan.output_array)
+        if len(plans) >= CPU_PLANS:
+            del plans[next(iter(plans))]
+    plans[key] = plan  # most recently used last
+    return plan
+
+
+def _cpu_rows(plan, x: np.ndarray, out: np.ndarray) -> None:
+    """``out[i] = transform(x[i])`` for each row by a plan of :func:`_cpu_plan`: in place of the
+    caller's rows where they are aligned as the plan's (no copy), else through the plan's own."""
+    plan, own_in, own_out = plan
+    alignment = plan.input_alignment
+    for src, dst in zip(x, out):
+        src_fits = src.ctypes.data % alignment == 0 and src.strides == own_in.strides
+        dst_fits = dst.ctypes.data % plan.output_alignment == 0 and dst.strides == own_out.strides
+        if not src_fits:
+            own_in[:] = src
+        plan.update_arrays(src if src_fits else own_in, dst if dst_fits else own_out)
+        plan.execute()
+        if not dst_fits:
+            dst[:] = own_out
 
 
 def fast_length(limit: int) -> int:
@@ -107,24 +145,24 @@ def irfft_rows(spectrum, n: int, device: str):
         return wp.from_dlpack(out)
     x = spectrum.numpy() if isinstance(spectrum, wp.array) else np.asarray(spectrum)
     if x.dtype != np.complex128:
-        x = x.view(np.complex128).reshape(x.shape[0], -1)
-    fft = _pyfftw()
-    out = np.empty((x.shape[0], n))
-    for i, row in enumerate(x):
-        out[i] = fft.irfft(row, n=n, norm="forward", threads=_threads(), planner_effort="FFTW_ESTIMATE")
+        x = x.view(np.complex128)[..., 0]
+    out = buffers.empty("lines", (x.shape[0], n), wp.float64, "cpu").numpy()
+    _cpu_rows(_cpu_plan("irfft", n), x, out)
     return out
 
 
-def rfft_rows(x, device: str):
-    """Forward real FFT of each row (float64, shape (R, n)); NumPy on the CPU, CuPy on CUDA."""
+def rfft_rows(x, device: str, name: str = "half spectrum"):
+    """Forward real FFT of each row (float64, shape (R, n)): complex128 (R, n // 2 + 1); NumPy on
+    the CPU (within :func:`mdroll.ensemble.buffers.reused`, the thread's buffer ``name``), CuPy
+    on CUDA."""
     if is_cuda(device):
         import cupy
 
         with cupy_stream(device):
             return cupy.fft.rfft(cupy_view(x), axis=-1)
-    x = x.numpy() if isinstance(x, warp().array) else np.asarray(x)
-    fft = _pyfftw()
-    out = np.empty((x.shape[0], x.shape[1] // 2 + 1), dtype=np.complex128)
-    for i, row in enumerate(x):
-        out[i] = fft.rfft(row, threads=_threads(), planner_effort="FFTW_ESTIMATE")
+    wp = warp()
+    x = x.numpy() if isinstance(x, wp.array) else np.asarray(x)
+    rows, n = x.shape
+    out = buffers.empty(name, (rows, n // 2 + 1), wp.vec2d, "cpu", aligned=True).numpy().view(np.complex128)[..., 0]
+    _cpu_rows(_cpu_plan("rfft", n), x, out)
     return out

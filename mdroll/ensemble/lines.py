@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 
 import numpy as np
 
 from ..devices import resolve_device, warp
 from ..params import ParameterError, Params
+from . import buffers
 from .batching import check_count_fits
 from .fft import irfft_rows
 
@@ -100,7 +102,7 @@ def random_spectra(params: Params, seed: int, realizations, device: str, roughne
     """The (R, n/2 + 1) half spectra (``wp.vec2d``, on ``device``) whose unnormalized inverse
     real FFTs (:func:`mdroll.ensemble.fft.irfft_rows`) are the lines of :func:`rough_lines`,
     already scaled to RMS h0 (or at their absolute level)."""
-    from ..kernels.lines import line_scales, mode_amplitudes, random_phase_spectrum
+    from ..kernels.lines import line_scales, random_phase_spectrum
     from ..roughness.models import from_params, mode_amplitude_table, resolve_level
 
     wp = warp()
@@ -113,23 +115,41 @@ def random_spectra(params: Params, seed: int, realizations, device: str, roughne
         # the default spectrum (eq 33): its amplitudes made on the device, no table to upload
         k_first, k_last = params.mode_range
         nyquist = n // 2 if n % 2 == 0 and k_last == n // 2 else -1
-        amplitudes = wp.empty(bins, dtype=wp.float64, device=device)
-        wp.launch(mode_amplitudes, dim=bins, inputs=[k_first, k_last, -(params.H + 0.5), amplitudes], device=device)
+        amplitudes, sum_of_squares = _power_law_amplitudes(bins, k_first, k_last, params.H, device)
     else:
         spectrum = from_params(params) if roughness is None else roughness
         table = mode_amplitude_table(params, spectrum)
         absolute = int(resolve_level(params, spectrum) == "absolute")
         nyquist = n // 2 if n % 2 == 0 and table[n // 2] != 0.0 else -1
         amplitudes = wp.array(table, dtype=wp.float64, device=device)
-    # Parseval's sum of the very amplitudes the spectra use, kept on the device
-    sum_of_squares = wp.empty(1, dtype=wp.float64, device=device)
-    wp.utils.array_inner(amplitudes, amplitudes, out=sum_of_squares)
+        sum_of_squares = _sum_of_squares(amplitudes, device)
     rows = wp.array(indices, dtype=wp.int64, device=device)
     scales = wp.empty(indices.size, dtype=wp.float64, device=device)
     keys = wp.empty(indices.size, dtype=wp.uint64, device=device)
     wp.launch(line_scales, dim=indices.size,
               inputs=[rows, wp.uint64(seed), amplitudes, nyquist, sum_of_squares, params.h0, absolute, scales, keys], device=device)
-    spectrum = wp.empty((indices.size, bins), dtype=wp.vec2d, device=device)
+    spectrum = buffers.empty("spectrum", (indices.size, bins), wp.vec2d, device, aligned=True)
     wp.launch(random_phase_spectrum, dim=(indices.size, (bins + 1) // 2),
               inputs=[keys, amplitudes, nyquist, scales, spectrum], device=device)
     return spectrum
+
+
+@functools.lru_cache(maxsize=8)
+def _power_law_amplitudes(bins: int, k_first: int, k_last: int, H: float, device: str):
+    """The amplitudes ``a_k`` of the default spectrum on ``bins`` modes (eq 33, up to the line's
+    scale; :func:`mdroll.kernels.lines.mode_amplitudes`) and their sum of squares, on ``device``:
+    the same for every batch of a run, so made once (5e5 powers took ~9 ms on one CPU core)."""
+    from ..kernels.lines import mode_amplitudes
+
+    wp = warp()
+    amplitudes = wp.empty(bins, dtype=wp.float64, device=device)
+    wp.launch(mode_amplitudes, dim=bins, inputs=[k_first, k_last, -(H + 0.5), amplitudes], device=device)
+    return amplitudes, _sum_of_squares(amplitudes, device)
+
+
+def _sum_of_squares(amplitudes, device: str):
+    """Parseval's sum of the very amplitudes the spectra use, kept on the device (a 1-array)."""
+    wp = warp()
+    total = wp.empty(1, dtype=wp.float64, device=device)
+    wp.utils.array_inner(amplitudes, amplitudes, out=total)
+    return total

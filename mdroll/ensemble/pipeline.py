@@ -9,6 +9,7 @@ the result (:mod:`.result`). Here: the batch loop, its stage clock and the progr
 from __future__ import annotations
 
 import contextlib
+import functools
 import threading
 import time
 from pathlib import Path
@@ -19,6 +20,7 @@ from ..devices import cpu_cores, is_cuda, queue_on, resolve_device, to_warp, war
 from ..kernels.dynamics import INTEGRATORS
 from ..kernels.spectra import NOT_FINITE
 from ..params import ParameterError, Params
+from . import buffers
 from .algorithms import algorithm_entry, coupled_entry, default_algorithm
 from .arguments import check_choice, check_flag, check_integer, check_params
 from .batching import check_batch_fits, check_run_fits, default_batch
@@ -38,6 +40,9 @@ H_BOUND_SIGMAS = 6.0
 #: With a checkpoint, batches are sized so that one takes about this long (s): a kill loses at
 #: most about this much work.
 CHECKPOINT_SECONDS = 30.0
+#: Realizations a CPU thread runs through the stages at once (:class:`_CpuWorkers`): few, so
+#: that its arrays stay small and are reused (docs/performance.md, CPU).
+CPU_CHUNK = 2
 
 
 class NonFiniteError(FloatingPointError):
@@ -99,11 +104,12 @@ def run_ensemble(
     :data:`~mdroll.kernels.dynamics.INTEGRATORS`; "forward-euler", the thesis's scheme, only with
     ``mode="coupled"`` and only for the coupling study (it grows every oscillation).
 
-    ``threads`` (CPU only; default every core of the process): a batch's realizations are split
-    into this many contiguous parts, each run through lines, force and spectra by its own Python
-    thread (Warp's CPU launches and FFTW release the GIL; each part's FFTs take one FFTW
-    thread), and the parts' moments merged in order: the same spectra to rounding whatever the
-    number of threads. On CUDA the device runs the batch as a whole.
+    ``threads`` (CPU only; default every core of the process): a batch's realizations go in
+    parts of :data:`CPU_CHUNK` through lines, force and spectra, each part on the next free one
+    of this many Python threads (Warp's CPU launches and FFTW release the GIL), into memory each
+    thread keeps from part to part; the parts' moments are merged in their order, so the spectra
+    do not depend on the number of threads at all (:class:`_CpuWorkers`). On CUDA the device runs
+    the batch as a whole.
 
     Parameters
     ----------
@@ -201,7 +207,8 @@ def run_ensemble(
         prepared = clock("build", lambda: prepare_lines(lines, params, algorithm, boundary, d0, device, leaf_size, h_bound))
         with serial:
             if decoupled:
-                force = clock("force", lambda: launch_force(prepared, params, algorithm, d0, device, offset=params.F_N))
+                out = buffers.empty("force", (len(idx), prepared.steps), warp().float64, device)
+                force = clock("force", lambda: launch_force(prepared, params, algorithm, d0, device, out, params.F_N))
                 accel = None
             else:
                 force, accel = clock("response", lambda: coupled_series(prepared, params, algorithm, device,
@@ -217,37 +224,47 @@ def run_ensemble(
     # with the size its last batch planned, so that its batches, and the rounding of their
     # merged moments, are the uninterrupted run's
     size = batch if checkpoint is None else min(batch, totals.next_batch)
-    while start < len(indices):
-        began = time.perf_counter()
-        idx = indices[start:start + size]
-        last = start + len(idx) >= len(indices)
-        parts = _cpu_parts(idx, threads)
-        outputs = [series_moments(idx, stage)] if len(parts) == 1 else _in_threads(series_moments, parts, timings)
-        totals.steps = outputs[0][0]
-        with queue_on(device):
-            for part, (_, _, (force_moments, accel_moments, _)) in zip(parts, outputs):
-                stage("spectra", lambda: totals.add_moments(len(part), force_moments, accel_moments))
-            if last:
-                # the result, queued before the last batch's wait, which then covers its copy too
-                rows = totals.spectra_on_host(params, wait=False)
-        # the batch's one wait: its checks and force sums need the sums and flags on the host (a
-        # failed check ends the run: the moments just merged are never seen or saved)
-        host = [(to_host(sums), to_host(psd_not_finite)) for _, sums, (_, _, psd_not_finite) in outputs]
-        stage.settle()
-        for part, (host_sums, psd_bad) in zip(parts, host):
-            _raise_on_rows(host_sums[:, NOT_FINITE] > 0, "force", "force" if decoupled else "response", part)
-            _raise_on_rows(psd_bad != 0, "force or acceleration PSD", "spectra", part)
-        for host_sums, _ in host:
-            totals.add_sums(host_sums, params.F_N)
-        totals.largest_batch = max(totals.largest_batch, len(idx))
-        if checkpoint is not None:
-            # the next batch: what this one's rate does in CHECKPOINT_SECONDS, within the memory's batch
-            rate = len(idx) / max(time.perf_counter() - began, 1e-9)
-            size = totals.next_batch = int(min(batch, max(1, rate * CHECKPOINT_SECONDS)))
-            totals.save(checkpoint, key)
-        bar.update(len(idx))
-        start += len(idx)
-        del outputs
+    workers = None if is_cuda(device) else _CpuWorkers(threads, timings)
+    try:
+        while start < len(indices):
+            began = time.perf_counter()
+            idx = indices[start:start + size]
+            last = start + len(idx) >= len(indices)
+            parts = _cpu_parts(idx, CPU_CHUNK if workers else len(idx))
+            outputs = workers.map(series_moments, parts) if workers else [series_moments(idx, stage)]
+            chunks = []  # (realizations, sums, PSD flags) of each part, in order
+            with queue_on(device):
+                # the parts' moments merged in their order as they come (whichever thread ran them)
+                for part, (steps, sums, (force_moments, accel_moments, psd_not_finite)) in zip(parts, outputs):
+                    totals.steps = steps
+                    stage("spectra", lambda: totals.add_moments(len(part), force_moments, accel_moments))
+                    chunks.append((part, sums, psd_not_finite))
+                if last:
+                    # the result, queued before the last batch's wait, which then covers its copy too
+                    rows = totals.spectra_on_host(params, wait=False)
+            # the batch's one wait: its checks and force sums need the sums and flags on the host (a
+            # failed check ends the run: the moments just merged are never seen or saved)
+            host = [(part, to_host(sums), to_host(psd_not_finite)) for part, sums, psd_not_finite in chunks]
+            stage.settle()
+            if workers:
+                workers.add_timings()
+            for part, host_sums, psd_bad in host:
+                _raise_on_rows(host_sums[:, NOT_FINITE] > 0, "force", "force" if decoupled else "response", part)
+                _raise_on_rows(psd_bad != 0, "force or acceleration PSD", "spectra", part)
+            for _, host_sums, _ in host:
+                totals.add_sums(host_sums, params.F_N)
+            totals.largest_batch = max(totals.largest_batch, len(idx))
+            if checkpoint is not None:
+                # the next batch: what this one's rate does in CHECKPOINT_SECONDS, within the memory's batch
+                rate = len(idx) / max(time.perf_counter() - began, 1e-9)
+                size = totals.next_batch = int(min(batch, max(1, rate * CHECKPOINT_SECONDS)))
+                totals.save(checkpoint, key)
+            bar.update(len(idx))
+            start += len(idx)
+            del outputs, chunks, host
+    finally:
+        if workers:
+            workers.close()
     bar.close()
 
     if rows is None:  # a resumed run that had nothing left to do
@@ -265,33 +282,60 @@ def run_ensemble(
     )
 
 
-def _cpu_parts(idx: np.ndarray, threads: int) -> list[np.ndarray]:
-    """``idx`` in at most ``threads`` contiguous parts of near-equal size (one for one thread)."""
-    return np.array_split(idx, min(threads, len(idx)))
+def _cpu_parts(idx: np.ndarray, size: int) -> list[np.ndarray]:
+    """``idx`` in consecutive parts of ``size`` realizations (the last may be shorter)."""
+    return [idx[i:i + size] for i in range(0, len(idx), size)]
 
 
-def _in_threads(work, parts: list, timings: dict) -> list:
-    """``work(part, clock, serial)`` for each part in its own thread, with one FFTW thread each;
-    results in the parts' order. ``serial`` is a lock that one thread holds at a time: Warp 1.19
-    keeps the shared memory of a CPU tile kernel (the sweep, the coupled dynamics) behind one
-    process-wide pointer, so two of them must not run at once (they crashed). Each stage's time
-    is the mean over the threads (they overlap)."""
-    from concurrent.futures import ThreadPoolExecutor
+class _CpuWorkers:
+    """The CPU path's threads: each part of a batch (:data:`CPU_CHUNK` realizations) is run
+    through lines, force and spectra by the next free one of ``threads`` Python threads (Warp's
+    CPU launches and FFTW release the GIL; each thread's FFTs take one FFTW thread), into
+    arrays the thread keeps from part to part (:mod:`.buffers`); the parts' moments are merged
+    in their order, so the result does not depend on the number of threads or on which thread
+    ran which part.
 
-    from .fft import fftw_threads
+    ``serial`` is a lock that one thread holds at a time: Warp 1.19 keeps the shared memory of a
+    CPU tile kernel (the sweep, the coupled dynamics) behind one pointer per module, so two of
+    them must not run at once (they crashed). Each stage's time is the mean over the threads
+    (they overlap), added to ``timings`` by :meth:`add_timings`.
+    """
 
-    clocks = [_StageClock("cpu", dict.fromkeys(timings, 0.0)) for _ in parts]
-    serial = threading.Lock()
+    def __init__(self, threads: int, timings: dict):
+        from concurrent.futures import ThreadPoolExecutor
 
-    def run(part, clock):
-        with fftw_threads(1):
-            return work(part, clock, serial)
+        self.pool = ThreadPoolExecutor(threads) if threads > 1 else None
+        self.timings = timings
+        self.serial = threading.Lock()
+        self.local = threading.local()
+        self.clocks = []
 
-    with ThreadPoolExecutor(len(parts)) as pool:
-        outputs = list(pool.map(run, parts, clocks))
-    for name in timings:
-        timings[name] += sum(clock.timings[name] for clock in clocks) / len(clocks)
-    return outputs
+    def map(self, work, parts):
+        """``work(part, clock, serial)`` of each part, in the parts' order, as they finish."""
+        run = functools.partial(self._run, work)
+        return self.pool.map(run, parts) if self.pool else map(run, parts)
+
+    def _run(self, work, part):
+        from .fft import fftw_threads
+
+        state = self.local.__dict__
+        if not state:  # this thread's first part
+            state["buffers"] = buffers.Buffers()
+            state["clock"] = _StageClock("cpu", dict.fromkeys(self.timings, 0.0))
+            self.clocks.append(state["clock"])
+        with fftw_threads(1), buffers.reused(state["buffers"]):
+            return work(part, state["clock"], self.serial)
+
+    def add_timings(self) -> None:
+        """Add each stage's mean time over the threads since the last call to ``timings``."""
+        for name in self.timings:
+            self.timings[name] += sum(clock.timings[name] for clock in self.clocks) / max(len(self.clocks), 1)
+        for clock in self.clocks:
+            clock.timings = dict.fromkeys(self.timings, 0.0)
+
+    def close(self) -> None:
+        if self.pool:
+            self.pool.shutdown(cancel_futures=True)
 
 
 class _StageClock:

@@ -13,6 +13,7 @@ from .. import physics
 from ..devices import is_cuda, to_warp, warp
 from ..params import MAX_POINTS, ParameterError, Params
 from .algorithms import BOUNDS, PREFIX, TREE, algorithm_entry, indenter_curvature
+from . import buffers
 from .arguments import check_choice
 from .fft import fast_length
 
@@ -152,7 +153,7 @@ def _prefix_sums(lines, device):
     wp = warp()
     lines = to_warp(lines, device)
     rows, n = lines.shape
-    flat = wp.empty(rows * n + 1, dtype=wp.float64, device=device)
+    flat = buffers.empty("prefix sums", (rows * n + 1,), wp.float64, device)
     flat[:1].zero_()
     wp.utils.array_scan((lines if lines.is_contiguous else lines.contiguous()).flatten(), flat[1:], inclusive=True)
     prefix = wp.array(ptr=flat.ptr, dtype=wp.float64, shape=(rows, n + 1), strides=(8 * n, 8), device=device)
@@ -242,7 +243,7 @@ def prepare_lines(
                 f"L = {params.L!r} m is too short for the periodic boundary at d = {d:.4g} m, max h = {h_max:.4g} m: "
                 f"the window of possible contact spans {2 * first + 1} springs, more than the {n} on the line"
             )
-        work = wp.empty((rows, n + 2 * first), dtype=wp.float64, device=device)
+        work = buffers.empty("periodic lines", (rows, n + 2 * first), wp.float64, device)
         wp.launch(periodic_extend, dim=work.shape, inputs=[lines, n, first, work], device=device)
     prepared = PreparedLines(lines=work, n_work=work.shape[1], first=first, steps=steps, bounds=bounds, leaf_size=leaf_size,
                              band_limit=band_limit)

@@ -9,6 +9,8 @@ scaled to mean(w^2) = 1, which keeps the total power.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from ..devices import array_module, cupy_stream, cupy_view, is_cuda, to_warp, warp
@@ -75,8 +77,10 @@ def complex_rows(spectrum, device: str):
         import cupy
 
         return wp.from_dlpack(spectrum.view(cupy.float64).reshape(rows, bins, 2), dtype=wp.vec2d)
-    return wp.array(np.ascontiguousarray(spectrum).view(np.float64).reshape(rows, bins, 2), dtype=wp.vec2d,
-                    device="cpu", copy=False)
+    if spectrum.strides[-1] != spectrum.itemsize:
+        spectrum = np.ascontiguousarray(spectrum)
+    # a view, padded rows included (the FFT's buffers, :mod:`.buffers`)
+    return wp.array(spectrum.view(np.float64).reshape(rows, bins, 2), dtype=wp.vec2d, device="cpu", copy=False)
 
 
 def series_sums(deviation, params: Params, device: str, decoupled: bool):
@@ -86,15 +90,13 @@ def series_sums(deviation, params: Params, device: str, decoupled: bool):
     contact lost (F <= 0), non-finite steps and, when ``decoupled``, the state (y_N (m),
     y'_N (m/s)) after the last step of the decoupled wheel started at rest (section 5.1; zeros
     otherwise). See :func:`mdroll.kernels.spectra.series_summary`."""
-    from ..kernels.spectra import SUMMARY_THREADS, add_partials, euler_impulse_response, series_summary
+    from ..kernels.spectra import SUMMARY_THREADS, add_partials, series_summary
 
     wp = warp()
     rows, steps = deviation.shape
     threads = SUMMARY_THREADS if is_cuda(device) else 1
     if decoupled:
-        weights = wp.empty(steps, dtype=wp.vec2d, device=device)
-        phi = euler_resonance_phase(params.omega_0, params.dt)
-        wp.launch(euler_impulse_response, dim=steps, inputs=[phi, params.dt, weights], device=device)
+        weights = _impulse_response(steps, euler_resonance_phase(params.omega_0, params.dt), params.dt, device)
     else:
         weights = wp.empty(1, dtype=wp.vec2d, device=device)
     partial = wp.empty((rows, threads, SUM_COLUMNS), dtype=wp.float64, device=device)
@@ -103,6 +105,40 @@ def series_sums(deviation, params: Params, device: str, decoupled: bool):
     sums = wp.empty((rows, SUM_COLUMNS), dtype=wp.float64, device=device)
     wp.launch(add_partials, dim=(rows, SUM_COLUMNS), inputs=[partial, threads, sums], device=device)
     return sums
+
+
+@functools.lru_cache(maxsize=4)
+def _impulse_response(steps: int, phi: float, dt: float, device: str):
+    """The decoupled wheel's ``A^m b`` for m = 0..steps-1 (:func:`mdroll.kernels.spectra.euler_impulse_response`;
+    ``phi`` rad, ``dt`` s) as a ``wp.vec2d`` array on ``device``: the same for every batch of a
+    run, so made once (three sines a step took ~45 ms for 10^6 steps on one CPU core)."""
+    from ..kernels.spectra import euler_impulse_response
+
+    wp = warp()
+    weights = wp.empty(steps, dtype=wp.vec2d, device=device)
+    wp.launch(euler_impulse_response, dim=steps, inputs=[phi, dt, weights], device=device)
+    return weights
+
+
+@functools.lru_cache(maxsize=4)
+def _responses(steps: int, omega2: float, dt: float, device: str):
+    """The decoupled wheel's response at each bin of a half spectrum of ``steps`` steps
+    (:func:`mdroll.kernels.spectra.response_table`; ``omega2`` rad^2/s^2, ``dt`` s) on
+    ``device``: the same for every batch of a run, so made once."""
+    from ..kernels.spectra import ResponseBin, response_table
+
+    wp = warp()
+    table = wp.empty(steps // 2 + 1, dtype=ResponseBin, device=device)
+    wp.launch(response_table, dim=table.shape, inputs=[steps, omega2, dt, table], device=device)
+    return table
+
+
+@functools.lru_cache(maxsize=4)
+def _no_responses(device: str):
+    """A one-bin table for the coupled mode's moments, which read none."""
+    from ..kernels.spectra import ResponseBin
+
+    return warp().zeros(1, dtype=ResponseBin, device=device)
 
 
 def psd_moments_of_batch(force, accel, sums, params: Params, device: str, window: bool = False):
@@ -121,17 +157,18 @@ def psd_moments_of_batch(force, accel, sums, params: Params, device: str, window
 
     wp = warp()
     rows, steps = force.shape
-    force_spectrum = complex_rows(rfft_rows(force, device), device)
-    accel_spectrum = force_spectrum if accel is None else complex_rows(rfft_rows(accel, device), device)
+    force_spectrum = complex_rows(rfft_rows(force, device, "force spectrum"), device)
+    accel_spectrum = force_spectrum if accel is None else complex_rows(rfft_rows(accel, device, "accel spectrum"), device)
     bins = force_spectrum.shape[1]
     force_moments = wp.empty(bins, dtype=wp.vec2d, device=device)
     accel_moments = wp.empty(bins, dtype=wp.vec2d, device=device)
     not_finite = wp.zeros(rows, dtype=wp.int32, device=device)
+    responses = _responses(steps, params.omega_0**2, params.dt, device) if accel is None else _no_responses(device)
     wp.launch(
         psd_moments_kernel(accel is None, bool(window)),
         dim=bins,
         inputs=[force_spectrum, accel_spectrum, to_warp(sums, device), steps,
-                params.dx / (TWO_PI * steps), params.omega_0**2, params.dt, 1.0 / params.m,
+                params.dx / (TWO_PI * steps), responses, 1.0 / params.m,
                 force_moments, accel_moments, not_finite],
         device=device,
     )
@@ -181,8 +218,12 @@ class RunningMoments:
         mean_b, m2_b = xp.asarray(mean_b), xp.asarray(m2_b)
         total = self.count + n_b
         delta = mean_b - self._mean
-        self._mean = self._mean + delta * (n_b / total)
-        self._m2 = self._m2 + m2_b + delta**2 * (self.count * n_b / total)
+        # in place, in the order of mean + delta n_b / total and (M2 + M2_b) + delta^2 count n_b / total
+        self._mean += delta * (n_b / total)
+        self._m2 += m2_b
+        delta *= delta
+        delta *= self.count * n_b / total
+        self._m2 += delta
         self.count = total
 
     @property
