@@ -32,10 +32,14 @@ def plot_psd(result, quantity: str = "accel", path=None, ax=None):
     own = ax is None
     if own:
         fig, ax = plt.subplots(figsize=(8, 5), dpi=120)
-    ax.fill_between(omega, np.maximum(mean - err, mean * 1e-3), mean + err, color="C0", alpha=0.3, lw=0)
-    ax.loglog(omega, mean, color="C0", lw=0.6, label=f"ensemble mean ({result.n_real} realizations, {result.algorithm}, {result.mode})")
+    lower, upper = np.maximum(mean - err, mean * 1e-3), mean + err
     positive = theory > 0
-    ax.loglog(omega[positive], theory[positive], color="C3", lw=0.6, alpha=0.8, label="eq 40")
+    drawn = column_extremes(omega, (lower, mean, upper, np.where(positive, theory, np.nan)))
+    ax.fill_between(omega[drawn], lower[drawn], upper[drawn], color="C0", alpha=0.3, lw=0)
+    ax.loglog(omega[drawn], mean[drawn], color="C0", lw=0.6,
+              label=f"ensemble mean ({result.n_real} realizations, {result.algorithm}, {result.mode})")
+    shown = drawn[positive[drawn]]
+    ax.loglog(omega[shown], theory[shown], color="C3", lw=0.6, alpha=0.8, label="eq 40")
     omega_0 = p.omega_0
     omega_t = physics.transition_frequency(p.q_min, p.v0)
     ax.axvline(omega_0, color="k", ls="--", lw=0.8)
@@ -44,7 +48,7 @@ def plot_psd(result, quantity: str = "accel", path=None, ax=None):
     ax.text(omega_t, ax.get_ylim()[1], r" $q_{min} v_0$", va="top", color="0.4")
     # slope guide q^-(2H+3), anchored to the mean at 2 q_min
     anchor = np.argmin(np.abs(q - 2 * p.q_min))
-    guide = omega[anchor:anchor + max(2, len(omega) // 4)]
+    guide = omega[[anchor, min(anchor + max(2, len(omega) // 4), len(omega)) - 1]]  # a straight line: its ends
     slope = physics.power_law_exponent(p.H)
     ax.loglog(guide, 3 * mean[anchor] * (guide / guide[0]) ** slope, color="C2", lw=1.2, label=f"$q^{{{slope:.1f}}}$ (eq 23)")
     ax.set_xlabel(r"$\omega$ (rad/s)")
@@ -58,3 +62,27 @@ def plot_psd(result, quantity: str = "accel", path=None, ax=None):
             plt.close(fig)
         return fig
     return ax
+
+
+#: Columns of equal width in log x that :func:`column_extremes` keeps the extremes of: several
+#: per pixel of the 8-inch figures at 120 dpi.
+PLOT_COLUMNS = 4096
+
+
+def column_extremes(x: np.ndarray, series, columns: int = PLOT_COLUMNS) -> np.ndarray:
+    """Sorted indices of the first, last, lowest and highest point of each series in each of
+    ``columns`` equal steps of log x (x positive, increasing; NaN points ignored): lines and
+    bands through these points draw as through all of them wherever a step is at most a pixel
+    wide (M4 aggregation), with ~10^4 points instead of the ~5e5 bins of a thesis-scale
+    spectrum, whose two plots took ~1.3 s to draw on one CPU core."""
+    log_x = np.log(x)
+    column = np.minimum(((log_x - log_x[0]) / max(log_x[-1] - log_x[0], 1e-300) * columns).astype(np.int64),
+                        columns - 1)
+    starts = np.flatnonzero(np.r_[True, column[1:] != column[:-1]])
+    lengths = np.diff(np.r_[starts, x.size])
+    keep = [starts, starts + lengths - 1]
+    for values in series:
+        for extreme in (np.fmin, np.fmax):
+            per_column = np.repeat(extreme.reduceat(values, starts), lengths)
+            keep.append(np.flatnonzero(values == per_column))
+    return np.unique(np.concatenate(keep))
