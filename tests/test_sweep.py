@@ -7,15 +7,17 @@ from reference import contact_reach, direct_force, sweep_force, to_numpy
 from mdroll import Params, contact_force, rough_lines, step_range
 from mdroll.devices import to_warp
 from mdroll.ensemble.prepare import prepare_lines
-from mdroll.ensemble.sweep import sweep_command
+from mdroll.ensemble.sweep import FORMS, sweep_command
 
 SMALL = Params(L=0.03, dx=20e-6)  # 1500 springs, a/dx = 253
 
 
-def _sweep(lines, p, boundary, d, device, tile_steps=None, block_dim=None, loads=None, h_max=None):
+def _sweep(lines, p, boundary, d, device, tile_steps=None, block_dim=None, loads=None, h_max=None, form=None,
+           chunk=None):
     lines = to_warp(np.asarray(lines) if isinstance(lines, np.ndarray) else lines, device)  # on the device
     prepared = prepare_lines(lines, p, "sweep", boundary, d, device, h_max=h_max)
-    command, force = sweep_command(prepared, p, d, device, tile_steps=tile_steps, block_dim=block_dim, loads=loads)
+    command, force = sweep_command(prepared, p, d, device, tile_steps=tile_steps, block_dim=block_dim, loads=loads,
+                                   form=form, chunk=chunk)
     command.launch()
     return to_numpy(force)
 
@@ -59,19 +61,22 @@ def test_reach_is_the_direct_sums_contact_decision(device):
     np.testing.assert_array_equal(out.numpy(), contact_reach(levels, p, 0.0))
 
 
+@pytest.mark.parametrize("form", FORMS)
 @pytest.mark.parametrize("boundary", ["open", "periodic"])
 @pytest.mark.parametrize("H", [0.3, 0.7, 0.9])
 @pytest.mark.parametrize("h0", [0.5e-6, 5e-6])
-def test_sweep_equals_direct(device, boundary, H, h0):
+def test_sweep_equals_direct(device, boundary, H, h0, form):
+    """Both forms (tiles, sequential) on every device, two indentations."""
     p = Params(L=0.04, dx=10e-6, H=H, h0=h0)
     lines = rough_lines(p, seed=7, realizations=3, device=device)
     for d in (p.d0, 0.8 * p.d0):
         direct = to_numpy(contact_force(lines, p, "direct", boundary, d=d, device=device))
-        assert np.max(np.abs(_sweep(lines, p, boundary, d, device) - direct)) <= 1e-12 * p.F_N
+        assert np.max(np.abs(_sweep(lines, p, boundary, d, device, form=form) - direct)) <= 1e-12 * p.F_N
 
 
+@pytest.mark.parametrize("form", FORMS)
 @pytest.mark.parametrize("boundary", ["open", "periodic"])
-def test_sweep_with_gaps_shallow_indentation_and_odd_lines(device, boundary):
+def test_sweep_with_gaps_shallow_indentation_and_odd_lines(device, boundary, form):
     """h0 = 5 um and d = 3 um < max h: the contact breaks into patches and the wheel loses it;
     an odd number of springs; against the independent NumPy references."""
     p = Params(L=0.03002, dx=20e-6, h0=5e-6, H=0.3)  # 1501 springs
@@ -80,7 +85,7 @@ def test_sweep_with_gaps_shallow_indentation_and_odd_lines(device, boundary):
     # the second pair of lines lowered until only their highest peaks reach the wheel at d = 3 um
     lines = np.concatenate([lines, lines - lines.max(axis=1, keepdims=True) - 1e-6])
     for d in (p.d0, 3e-6):
-        force = _sweep(lines, p, boundary, d, device)
+        force = _sweep(lines, p, boundary, d, device, form=form)
         first, steps = step_range(p, boundary, d, lines.max())
         for r in range(4):
             if boundary == "open":
@@ -91,26 +96,28 @@ def test_sweep_with_gaps_shallow_indentation_and_odd_lines(device, boundary):
     assert np.min(force[2:]) == 0.0 < np.max(force[2:])  # the wheel lost contact, and found it again
 
 
+@pytest.mark.parametrize("form", FORMS)
 @pytest.mark.parametrize("boundary", ["open", "periodic"])
-def test_tiny_line(device, boundary):
+def test_tiny_line(device, boundary, form):
     """The shortest line Params allows (L = 4a) on a coarse grid: 207 springs, 101 of them in
     contact, 100 open steps."""
     p = Params(L=0.0207, dx=100e-6, h0=1e-6, H=0.9)
     lines = rough_lines(p, seed=9, realizations=2, device=device)
     direct = to_numpy(contact_force(lines, p, "direct", boundary, device=device))
-    assert np.max(np.abs(_sweep(lines, p, boundary, p.d0, device) - direct)) <= 1e-12 * p.F_N
+    assert np.max(np.abs(_sweep(lines, p, boundary, p.d0, device, form=form) - direct)) <= 1e-12 * p.F_N
 
 
-def test_same_force_whatever_the_tile_the_block_or_the_batch(device):
+def test_same_force_whatever_the_form_the_tile_the_block_the_chunk_or_the_batch(device):
     """Tiles of 16 steps to the default, blocks of 1 to 8 lanes (on the CPU through Warp's
-    cooperative CPU blocks; 64 to 256 on CUDA), three lines at once or one by one: the same
-    force to 1e-12 F_N."""
+    cooperative CPU blocks; 64 to 256 on CUDA), sequential chunks of 1 to 4096 steps (launched
+    twice: each thread clears its ring), three lines at once or one by one: the same force to
+    1e-12 F_N."""
     import warp as wp
 
     p = SMALL.replace(h0=2e-6)
     lines = to_numpy(rough_lines(p, seed=4, realizations=3, device="cpu"))
     d = 0.9 * p.d0
-    reference = _sweep(lines, p, "open", d, device)
+    reference = _sweep(lines, p, "open", d, device, form="tiles")
     direct = to_numpy(contact_force(lines, p, "direct", "open", d=d, device=device))
     assert np.max(np.abs(reference - direct)) <= 1e-12 * p.F_N
     # (tile steps, lanes, loads a lane)
@@ -119,10 +126,17 @@ def test_same_force_whatever_the_tile_the_block_or_the_batch(device):
     wp.config.enable_cpu_blocks = True
     try:
         for variant in variants:
-            force = _sweep(lines, p, "open", d, device, *variant)
+            force = _sweep(lines, p, "open", d, device, *variant, form="tiles")
             assert np.max(np.abs(force - reference)) <= 1e-12 * p.F_N, variant
     finally:
         wp.config.enable_cpu_blocks = enabled
+    for chunk in (1, 7, 64, 4096):
+        lines_here = to_warp(lines, device)
+        prepared = prepare_lines(lines_here, p, "sweep", "open", d, device)
+        command, force = sweep_command(prepared, p, d, device, form="sequential", chunk=chunk)
+        for _ in range(2):
+            command.launch()
+            assert np.max(np.abs(to_numpy(force) - reference)) <= 1e-12 * p.F_N, chunk
     # one by one, with the batch's wheel positions (h_max): each line's own bounds and scale
     alone = np.concatenate([_sweep(lines[r:r + 1], p, "open", d, device, h_max=lines.max()) for r in range(3)])
     assert np.max(np.abs(alone - reference)) <= 1e-12 * p.F_N

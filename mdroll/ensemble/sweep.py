@@ -1,7 +1,10 @@
-"""Host side of the sweep force (:mod:`mdroll.kernels.sweep`): tile size, band check, launch.
+"""Host side of the sweep force (:mod:`mdroll.kernels.sweep`): its form, layout, band check, launch.
 
 The sweep is exact and O(n) at a fixed indentation d (physics.md section 4). It reads the lines,
 their prefix sums (eq 18) and the row bounds ``(min h, max h)`` of a :class:`PreparedLines`.
+On CUDA it runs as tiles of steps, a block's lanes scattering and scanning the events together;
+on the CPU, where Warp runs one lane a thread, as a sequential sweep of each chunk of steps
+(:data:`FORMS`; the kernels' docstring has both and the measurements that chose them).
 """
 
 from __future__ import annotations
@@ -21,6 +24,11 @@ CUDA_MIN_TILE = 512
 CUDA_LOADS = 2
 #: CPU: Warp runs a block as one lane; a longer tile reads the anchors' bands less often.
 CPU_MIN_TILE = 4096
+#: The sequential form: steps a thread (a chunk reads the anchor's 2 band springs once).
+SEQUENTIAL_CHUNK = 1 << 15
+#: The sweep's forms and the one each kind of device runs by default.
+FORMS = ("tiles", "sequential")
+DEFAULT_FORM = {"cuda": "tiles", "cpu": "sequential"}
 #: A tile spans at least this many times the widest band (springs whose contact at the tile's
 #: start is uncertain, one side): the band is read 2 + 2 x T / band times a tile, so the work a
 #: step stays O(1) as the band grows under refinement.
@@ -56,18 +64,21 @@ def sweep_tile(band: int, device: str, tile_steps: int | None = None, block_dim:
 
 
 def sweep_command(prepared, params: Params, d: float, device: str, out=None, offset: float = 0.0,
-                  tile_steps: int | None = None, block_dim: int | None = None, loads: int | None = None):
+                  tile_steps: int | None = None, block_dim: int | None = None, loads: int | None = None,
+                  form: str | None = None, chunk: int | None = None):
     """The sweep's force launch, recorded (``wp.Launch``; run with ``.launch()``), and the
     (R, steps) array it writes: ``F - offset`` (N) at indentation d (m) for every step.
 
     ``prepared`` needs ``lines``, ``prefix``, ``bounds``, ``h_low`` and ``h_top`` (see
-    :func:`mdroll.ensemble.prepare.prepare_lines`); ``tile_steps`` and ``block_dim`` override the
-    defaults of :func:`sweep_tile`, ``loads`` CUDA_LOADS (1 on the CPU): the force is the same
-    to rounding whatever they are. Refuses (ParameterError) a batch whose band of uncertain
-    contact is wider than :data:`mdroll.kernels.sweep.MAX_BAND` springs, where the kernel's
-    int32 sums could overflow.
+    :func:`mdroll.ensemble.prepare.prepare_lines`). ``form`` (:data:`FORMS`) picks the kernel,
+    by default :data:`DEFAULT_FORM` of the device's kind; for the tiles ``tile_steps`` and
+    ``block_dim`` override the defaults of :func:`sweep_tile` and ``loads`` CUDA_LOADS (1 on the
+    CPU); for the sequential form ``chunk`` overrides SEQUENTIAL_CHUNK. The force is the same to
+    rounding whatever they are. Refuses (ParameterError) a batch whose band of uncertain contact
+    is wider than :data:`mdroll.kernels.sweep.MAX_BAND` springs, where the tiles' int32 sums
+    could overflow.
     """
-    from ..kernels.sweep import MAX_BAND, sweep_kernel
+    from ..kernels.sweep import MAX_BAND, contact_force_sequential, sweep_kernel
 
     wp = warp()
     p = prepared
@@ -81,7 +92,22 @@ def sweep_command(prepared, params: Params, d: float, device: str, out=None, off
             f"and heights {p.h_low:.4g} .. {p.h_top:.4g} m, beyond the {MAX_BAND} its exact int32 sums allow: use "
             f"the tree"
         )
+    if form is None:
+        form = DEFAULT_FORM["cuda" if is_cuda(device) else "cpu"]
+    if form not in FORMS:
+        raise ParameterError(f"form = {form!r}: the sweep's forms are {', '.join(map(repr, FORMS))}")
     force = out if out is not None else wp.empty((rows, p.steps), dtype=wp.float64, device=device)
+    if form == "sequential":
+        chunk = chunk or SEQUENTIAL_CHUNK
+        chunks = -(-p.steps // chunk)
+        # a thread's ring: one slot a step for the band's steps ahead, and the current step's
+        ring_packed = wp.empty((rows, chunks, band + 1), dtype=wp.int64, device=device)
+        ring_value = wp.empty((rows, chunks, band + 1), dtype=wp.float64, device=device)
+        inputs = [p.lines, p.prefix, p.bounds, p.n_work, p.first, p.steps, chunk, d, curvature, params.k_spring,
+                  offset, ring_packed, ring_value, force]
+        command = wp.launch(contact_force_sequential, dim=(rows, chunks), inputs=inputs, device=device,
+                            record_cmd=True)
+        return command, force
     tile, lanes = sweep_tile(band, device, tile_steps, block_dim)
     inputs = [p.lines, p.prefix, p.bounds, p.n_work, p.first, p.steps, d, curvature, params.k_spring, offset, force]
     if loads is None:
@@ -93,5 +119,6 @@ def sweep_command(prepared, params: Params, d: float, device: str, out=None, off
 
 def sweep_launch(prepared, params: Params, d: float, offset: float, force, lifts, device: str):
     """The registry's ``force_launch`` of the sweep (:mod:`mdroll.ensemble.algorithms`): the
-    recorded launch of :func:`sweep_command` with its default tiles, writing ``force``."""
+    recorded launch of :func:`sweep_command` in its device's default form and layout, writing
+    ``force``."""
     return sweep_command(prepared, params, d, device, out=force, offset=offset)[0]

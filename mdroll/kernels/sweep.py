@@ -15,7 +15,20 @@ fixed origin c0, ``P1 = sum m`` and ``P2 = sum m^2``, since ``sum (i - c)^2 = P2
 for ``t = c - c0`` (exact integers). Each spring changes them twice: it enters at
 ``c = i - M_i`` and leaves after ``c = i + M_i``.
 
-Design (per block: one row and a tile of T consecutive steps, ``c0 = first + tile T``):
+Two forms of the same sweep, one per kind of device:
+
+* **tiles** (:func:`sweep_kernel`, CUDA): the steps of a tile are the lanes of a block, which
+  scatter the events and scan them together (below);
+* **sequential** (:data:`contact_force_sequential`, the CPU, where Warp runs one lane a thread):
+  each thread sweeps a chunk of consecutive steps in order, carrying the totals from step to
+  step and the events pending for the next ``band`` steps in a ring (see its docstring).
+
+Both equal the direct sum to rounding; on an H200 the sequential form, one lane a chunk, took
+9.5 ms against the tiles' 9.6 at thesis scale and lost more under refinement (its ring, ``band``
+slots a lane, leaves fewer lanes resident as the band grows), while on one CPU core it takes
+~18-23 ns a step against the tiles' ~32 (docs/performance.md).
+
+Tiles (per block: one row and a tile of T consecutive steps, ``c0 = first + tile T``):
 
 1. *Anchor at c0*: the springs with ``curvature m^2 < d + min h`` (the row's bounds) touch
    whatever h is: the core ``|m| <= core``, a closed form (count, prefix sums S_j of eq 18,
@@ -69,8 +82,16 @@ memory and 72 registers a lane, ptxas for sm_90) are there to hide the latency b
 The build adds the row bounds (one pass over the lines, ~0.65 ms at 3.96 TB/s) to the prefix
 sums that the edge kernel reads too.
 
-On the CPU Warp runs a block as one lane (block_dim 1): the same code is then a sequential
-sweep over the tile, one spring read twice and one bin per step.
+Sequential (one thread: one row and a chunk of consecutive steps): with ``V = sum (h_i -
+curvature m^2)`` and ``P = sum m`` over the contact set, m the offsets from the wheel, the force
+is ``F = k (V + N d)`` and one step moves every offset by -1:
+``V(c + 1) = V(c) + curvature (2 P - N)``, ``P(c + 1) = P - N``, before the springs that enter
+or leave at c + 1 change the totals. At step c the thread reads spring ``c + outer`` (the last
+that can enter at c; it enters within ``band = outer - max(core, 0)`` steps) and spring
+``c - max(core, 0) - 1`` (the first whose exit can fall at c; it leaves within ``band`` steps),
+records each event in the ring slot of the step it happens at, then applies and clears the slot
+of step c. The chunk starts from the same anchor as a tile. N and P are exact integers; V
+carries one rounding a step (~1e-17 m at the defaults) and restarts from the anchor every chunk.
 """
 
 import functools
@@ -314,3 +335,125 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
                 force[r, s0 + t] = forces[t + (t >> LOG_S)]
 
     return contact_force_sweep
+
+
+#: An event's count change sits above bit 40 of its packed int64, its offsets' change below: the
+#: latter is never negative (an entry adds its reach M >= 0, an exit removes offset -M - 1), and a
+#: slot's sum stays below 2^40 for any supported band and reach, so the two never mix.
+COUNT_SHIFT = wp.constant(wp.int64(40))
+COUNT_UNIT = wp.constant(wp.int64(1 << 40))
+OFFSET_MASK = wp.constant(wp.int64((1 << 40) - 1))
+
+
+@wp.func
+def packed_event(count: int, offsets: int) -> wp.int64:
+    """An event's count change (+1 enters, -1 leaves) and offsets' change (>= 0), packed in one
+    int64: ``count 2^40 + offsets``; a sum of them unpacks as ``(sum >> 40, sum & (2^40 - 1))``."""
+    return wp.int64(count) * COUNT_UNIT + wp.int64(offsets)
+
+
+@wp.kernel(enable_backward=False)
+def contact_force_sequential(
+    lines: wp.array2d(dtype=wp.float64),
+    prefix: wp.array2d(dtype=wp.float64),
+    bounds: wp.array(dtype=wp.vec2d),
+    n: int,
+    first: int,
+    steps: int,
+    chunk: int,
+    d: wp.float64,
+    curvature: wp.float64,
+    k_spring: wp.float64,
+    offset: wp.float64,
+    ring_packed: wp.array3d(dtype=wp.int64),
+    ring_value: wp.array3d(dtype=wp.float64),
+    force: wp.array2d(dtype=wp.float64),
+):
+    """``force[r, s] = F - offset`` (N): F (eq 10-12) with the wheel at spring ``first + s`` of
+    row r, indentation d (m), for the ``chunk`` steps s of thread (r, j), swept in order;
+    ``ring_*[r, j]`` (at least ``band + 1`` slots, cleared here) hold its pending events."""
+    r, j = wp.tid()
+    slots = ring_packed.shape[2]
+    for k in range(slots):
+        ring_packed[r, j, k] = wp.int64(0)
+        ring_value[r, j, k] = wp.float64(0.0)
+    s_begin = j * chunk
+    s_end = wp.min(s_begin + chunk, steps)
+    row = lines[r]
+    box = bounds[r]
+    core = reach_strict(d + box[0], curvature)  # every spring reaches this far (-1: none surely)
+    outer = reach_strict(d + box[1], curvature)  # no spring reaches farther
+    near = wp.max(core, 0)
+
+    # the anchor: the contact set at the chunk's first step c, and the events the band springs
+    # have pending (slot k: k steps after c)
+    c = first + s_begin
+    count = wp.int64(0)
+    offsets = wp.int64(0)
+    level = wp.float64(0.0)
+    if core >= 0:
+        count = wp.int64(2 * core + 1)
+        level = (prefix[r, c + core + 1] - prefix[r, c - core]) - curvature * sum_of_squares(-core, core)
+    for m in range(core + 1, outer + 1):  # right band: in contact, or entering at m - reach
+        if c + m < n:
+            h = row[c + m]
+            reach = reach_strict(h + d, curvature)
+            if reach >= m:
+                count += wp.int64(1)
+                offsets += wp.int64(m)
+                level += h - curvature * wp.float64(m) * wp.float64(m)
+            elif reach >= 0:
+                along = wp.float64(reach)
+                ring_packed[r, j, m - reach] += packed_event(1, reach)
+                ring_value[r, j, m - reach] += h - curvature * along * along
+    for m in range(-outer, -near):  # left band: in contact, and leaving at m + reach + 1
+        if c + m >= 0:
+            h = row[c + m]
+            reach = reach_strict(h + d, curvature)
+            if reach >= -m:
+                count += wp.int64(1)
+                offsets += wp.int64(m)
+                level += h - curvature * wp.float64(m) * wp.float64(m)
+                along = wp.float64(reach + 1)
+                ring_packed[r, j, m + reach + 1] += packed_event(-1, reach + 1)
+                ring_value[r, j, m + reach + 1] += curvature * along * along - h
+    force[r, s_begin] = k_spring * (level + wp.float64(count) * d) - offset
+
+    slot = int(0)  # the ring slot of the current step (slot of step t: t mod slots)
+    for s in range(s_begin + 1, s_end):
+        wheel = first + s
+        slot += 1
+        if slot == slots:
+            slot = 0
+        if wheel + outer < n:  # enters outer - reach steps later, at offset reach
+            h = row[wheel + outer]
+            reach = reach_strict(h + d, curvature)
+            if reach >= 0:
+                at = slot + outer - reach
+                if at >= slots:
+                    at -= slots
+                along = wp.float64(reach)
+                ring_packed[r, j, at] += packed_event(1, reach)
+                ring_value[r, j, at] += h - curvature * along * along
+        if wheel - near - 1 >= 0:  # leaves reach - near steps later, from offset -reach - 1
+            h = row[wheel - near - 1]
+            reach = reach_strict(h + d, curvature)
+            if reach >= 0:
+                at = slot + reach - near
+                if at >= slots:
+                    at -= slots
+                along = wp.float64(reach + 1)
+                ring_packed[r, j, at] += packed_event(-1, reach + 1)
+                ring_value[r, j, at] += curvature * along * along - h
+        # one step: every offset -1, then the step's events
+        level += curvature * wp.float64(wp.int64(2) * offsets - count)
+        offsets -= count
+        packed = ring_packed[r, j, slot]
+        count += packed >> COUNT_SHIFT
+        offsets += packed & OFFSET_MASK
+        level += ring_value[r, j, slot]
+        ring_packed[r, j, slot] = wp.int64(0)
+        ring_value[r, j, slot] = wp.float64(0.0)
+        if count == wp.int64(0):
+            level = wp.float64(0.0)  # no contact: exactly no force, and no drift carried on
+        force[r, s] = k_spring * (level + wp.float64(count) * d) - offset
