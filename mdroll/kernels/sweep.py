@@ -42,10 +42,12 @@ Tiles (per block: one row and a tile of T consecutive steps, ``c0 = first + tile
    barrier). A lane loads ``loads`` entering and as many leaving springs before it scatters
    them, so that on CUDA several loads are in flight between two barriers.
 3. *Scan*: each lane turns its ``T / block_dim`` consecutive bins into changes of the four
-   totals and sums them; a Hillis-Steele scan over the lanes' sums (ping-pong shared tiles,
-   log2(block_dim) barriers) gives each lane the totals before its bins; the lane runs through
-   its steps, puts ``F - offset`` in a shared tile, and the block writes that out in order,
-   adjacent lanes to adjacent steps (coalesced).
+   totals, keeps them in registers (up to 16 bins a lane) and sums them; a Hillis-Steele scan
+   over the lanes' sums (ping-pong shared tiles, log2(block_dim) barriers) gives each lane the
+   totals before its bins; the lane runs through its steps, stores ``F - offset`` into a shared
+   tile by address (Warp's tile element assignment would add a barrier each), and after one
+   barrier the block writes the tile out in order, adjacent lanes to adjacent steps
+   (coalesced).
 
 A bin holds nine int32 sums, so that every scatter is a native shared-memory atomic add (the
 sm_90 SASS of int64 or float64 atomic adds on shared memory is a compare-and-swap loop,
@@ -76,9 +78,11 @@ H200's 3.96 TB/s, the same bytes as the edge kernel (eq 49: one prefix read and 
 step), which takes 2.55 ms. The arithmetic is ~2.2 reaches (~12 float64 operations each) and
 ~2.2 x 9 int32 shared-memory atomics a step (~0.3 ms of the H200's float64 rate, ~0.6 ms of its
 shared-memory wavefronts at one a bank-conflict-free atomic). At T = 512 and 128 lanes a tile
-passes ~25 barriers (5 scatter rounds of two, 1 anchor, 7 scan, 4 stores of the forces and the
-zeroing): the ``loads`` batching and 6 resident blocks a multiprocessor (36 KiB of shared
-memory and 72 registers a lane, ptxas for sm_90) are there to hide the latency between them.
+passes ~22 barriers (5 scatter rounds of two, 1 anchor, 7 scan, 1 after the forces' stores,
+the zeroing): the ``loads`` batching and 6 resident blocks a multiprocessor (36 KiB of shared
+memory and 80 registers a lane, ptxas for sm_90) are there to hide the latency between them.
+(Atomic adds without a barrier each, one barrier after all of them, measured slower: 9.1 ms
+against 8.8 on an H200.)
 The build adds the row bounds (one pass over the lines, ~0.65 ms at 3.96 TB/s) to the prefix
 sums that the edge kernel reads too.
 
@@ -121,6 +125,25 @@ MAX_BAND = 16383
 #: Fixed-point heights stay below 2^46 (the top limb then below 2^14).
 FIXED_RANGE = wp.constant(wp.float64(2.0**46))
 LIMB = wp.constant(wp.int64(0xFFFF))
+
+
+@wp.func_native("""((double*)shared)[i] = value;""")
+def shared_store(shared: wp.uint64, i: int, value: wp.float64):
+    """Store one float64 in shared memory by its address, without Warp's barrier after a tile
+    element's assignment."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+__syncthreads();
+#else
+WP_TILE_SYNC();
+#endif
+""")
+def sync_block():
+    """A block's barrier (``__syncthreads`` on CUDA, Warp's CPU block barrier otherwise)."""
+    ...
 
 
 @wp.func
@@ -208,8 +231,15 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
     LOADS = loads
     SCAN_ROUNDS = BD.bit_length() - 1
     heights_batch = wp.types.vector(length=LOADS, dtype=wp.float64)
+    # a lane's S bin changes kept in registers between the two scan passes (when S is small
+    # enough for its loops to unroll), instead of computed twice
+    CACHED = S <= 16
+    lane_changes = wp.types.matrix(shape=(S, 4), dtype=wp.int64)
 
-    @wp.kernel(module="unique")
+    @wp.func_native("""return (uint64_t)(&memory.data(0));""")
+    def forces_address(memory: wp.tile(dtype=wp.float64, shape=(PADDED,), storage="shared")) -> wp.uint64: ...
+
+    @wp.kernel(module="unique", enable_backward=False)
     def contact_force_sweep(
         lines: wp.array2d(dtype=wp.float64),
         prefix: wp.array2d(dtype=wp.float64),
@@ -297,8 +327,13 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
         # 3. scan: this lane's bins lane*S .. lane*S+S-1, after the totals of the lanes before
         first_bin = lane * S
         own = totals4()
+        changes = lane_changes()
         for k in range(S):
-            own = own + bin_change(bins[first_bin + lane + k], first_bin + k, near)
+            change = bin_change(bins[first_bin + lane + k], first_bin + k, near)
+            if wp.static(CACHED):
+                for q in range(4):
+                    changes[k, q] = change[q]
+            own = own + change
         inclusive = own
         ping = wp.tile_zeros(shape=BD, dtype=totals4, storage="shared")
         pong = wp.tile_zeros(shape=BD, dtype=totals4, storage="shared")
@@ -324,10 +359,16 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
             core_heights = prefix[r, c0 + core + 1] - prefix[r, c0 - core]
         inverse_scale = wp.float64(1.0) / scale
         forces = wp.tile_zeros(shape=PADDED, dtype=wp.float64, storage="shared")
+        lane_forces = forces_address(forces)  # each lane writes its own steps: no barrier until all are written
         for k in range(S):
             t = first_bin + k
-            running = running + bin_change(bins[t + lane], t, near)
-            forces[t + lane] = force_of_totals(running, core_heights, t, d, curvature, inverse_scale, k_spring, offset)
+            if wp.static(CACHED):
+                running = running + totals4(changes[k, 0], changes[k, 1], changes[k, 2], changes[k, 3])
+            else:
+                running = running + bin_change(bins[t + lane], t, near)
+            shared_store(lane_forces, t + lane,
+                         force_of_totals(running, core_heights, t, d, curvature, inverse_scale, k_spring, offset))
+        sync_block()
         # written back in order, adjacent lanes to adjacent steps (coalesced)
         for k in range(S):
             t = k * BD + lane
