@@ -168,6 +168,21 @@ def add_partials(partial: wp.array3d(dtype=wp.float64), threads: int, sums: wp.a
     sums[r, j] = acc
 
 
+@wp.kernel
+def merge_moments(count: wp.float64, added: wp.float64, mean: wp.array(dtype=wp.float64), m2: wp.array(dtype=wp.float64),
+                  moments: wp.array(dtype=wp.vec2d)):
+    """Chan et al.'s merge of ``added`` samples of per-bin mean and M2 (``moments[k]``) into
+    ``count`` samples' ``mean[k]`` and ``m2[k]``, in place: ``delta = mean_b - mean``,
+    ``mean += delta added / total``, ``m2 += m2_b + delta^2 count added / total`` (the
+    expressions of :meth:`mdroll.ensemble.spectra.RunningMoments.merge`, in one pass)."""
+    k = wp.tid()
+    total = count + added
+    batch = moments[k]
+    delta = batch[0] - mean[k]
+    mean[k] = mean[k] + delta * (added / total)
+    m2[k] = m2[k] + batch[1] + delta * delta * (count * added / total)
+
+
 @wp.struct
 class ResponseBin:
     """Section 5.1 in the frequency domain at one bin, ``z = exp(2 pi i k / N)``: the DFT of the
