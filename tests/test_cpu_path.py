@@ -89,3 +89,23 @@ def test_column_extremes_keep_each_columns_range():
         for values in series:
             assert np.nanmin(values[chosen]) == np.nanmin(values[every])
             assert np.nanmax(values[chosen]) == np.nanmax(values[every])
+
+
+@pytest.mark.parametrize("bins", [4097, 10_000])
+def test_the_cpu_spans_make_the_same_modes(bins):
+    """random_phase_spans (the CPU's, 4096 modes a thread) equals random_phase_spectrum (two modes
+    a thread) to the bit, Nyquist mode included."""
+    from mdroll.kernels.lines import random_phase_spans, random_phase_spectrum
+
+    wp = warp()
+    rng = np.random.default_rng(bins)
+    keys = wp.array(rng.integers(0, 2**63, 3, dtype=np.uint64), dtype=wp.uint64, device="cpu")
+    amplitudes = wp.array(np.where(rng.random(bins) < 0.2, 0.0, rng.random(bins)), dtype=wp.float64, device="cpu")
+    scales = wp.array(rng.random(3), dtype=wp.float64, device="cpu")
+    pairs, spans = (wp.empty((3, bins), dtype=wp.vec2d, device="cpu") for _ in range(2))
+    wp.launch(random_phase_spectrum, dim=(3, (bins + 1) // 2), inputs=[keys, amplitudes, bins - 1, scales, pairs],
+              device="cpu")
+    wp.launch(random_phase_spans, dim=(3, -(-bins // 4096)), inputs=[keys, amplitudes, bins - 1, scales, 4096, spans],
+              device="cpu")
+    assert np.abs(pairs.numpy()).max() > 0 and (pairs.numpy()[:, -1, 1] == 0).all()
+    np.testing.assert_array_equal(spans.numpy(), pairs.numpy())

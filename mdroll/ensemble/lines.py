@@ -7,11 +7,14 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..devices import resolve_device, warp
+from ..devices import is_cuda, resolve_device, warp
 from ..params import ParameterError, Params
 from . import buffers
 from .batching import check_count_fits
 from .fft import irfft_rows
+
+#: Modes a thread of the CPU's random spectrum makes (:func:`mdroll.kernels.lines.random_phase_spans`).
+CPU_SPAN = 4096
 
 
 def realization_indices(realizations) -> np.ndarray:
@@ -102,7 +105,7 @@ def random_spectra(params: Params, seed: int, realizations, device: str, roughne
     """The (R, n/2 + 1) half spectra (``wp.vec2d``, on ``device``) whose unnormalized inverse
     real FFTs (:func:`mdroll.ensemble.fft.irfft_rows`) are the lines of :func:`rough_lines`,
     already scaled to RMS h0 (or at their absolute level)."""
-    from ..kernels.lines import line_scales, random_phase_spectrum
+    from ..kernels.lines import line_scales, random_phase_spans, random_phase_spectrum
     from ..roughness.models import from_params, mode_amplitude_table, resolve_level
 
     wp = warp()
@@ -129,8 +132,12 @@ def random_spectra(params: Params, seed: int, realizations, device: str, roughne
     wp.launch(line_scales, dim=indices.size,
               inputs=[rows, wp.uint64(seed), amplitudes, nyquist, sum_of_squares, params.h0, absolute, scales, keys], device=device)
     spectrum = buffers.empty("spectrum", (indices.size, bins), wp.vec2d, device, aligned=True)
-    wp.launch(random_phase_spectrum, dim=(indices.size, (bins + 1) // 2),
-              inputs=[keys, amplitudes, nyquist, scales, spectrum], device=device)
+    if is_cuda(device):
+        wp.launch(random_phase_spectrum, dim=(indices.size, (bins + 1) // 2),
+                  inputs=[keys, amplitudes, nyquist, scales, spectrum], device=device)
+    else:
+        wp.launch(random_phase_spans, dim=(indices.size, -(-bins // CPU_SPAN)),
+                  inputs=[keys, amplitudes, nyquist, scales, CPU_SPAN, spectrum], device=device)
     return spectrum
 
 

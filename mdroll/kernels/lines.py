@@ -133,6 +133,23 @@ def random_phase_spectrum(
 
 
 @wp.kernel
+def random_phase_spans(
+    keys: wp.array(dtype=wp.uint64),
+    amplitudes: wp.array(dtype=wp.float64),
+    nyquist: int,
+    scales: wp.array(dtype=wp.float64),
+    span: int,
+    spectrum: wp.array2d(dtype=wp.vec2d),
+):
+    """:func:`random_phase_spectrum`'s modes (the same values) for the CPU: thread j of row r
+    makes modes ``j span .. (j + 1) span - 1``. Warp's CPU launch runs its threads one after
+    another, and a thread for every two modes cost ~2.4 of 21 ms a row of 5e5 modes."""
+    r, j = wp.tid()
+    for k in range(j * span, wp.min((j + 1) * span, spectrum.shape[1])):
+        spectrum[r, k] = phase_mode(keys, amplitudes, nyquist, scales, r, k)
+
+
+@wp.kernel
 def row_min_max(partial: wp.array2d(dtype=wp.vec2d), n_blocks: int, bounds: wp.array(dtype=wp.vec2d)):
     """Min and max of each row from its block partials: ``bounds[r] = (min h, max h)``."""
     r = wp.tid()
