@@ -202,15 +202,15 @@ def run_ensemble(
 
     def series_moments(idx, clock, serial=contextlib.nullcontext()):
         """Lines -> force (and response) -> sums and PSD moments of the realizations ``idx``;
-        the force or response stage inside ``serial``."""
+        the coupled response inside ``serial``."""
         lines = clock("generate", lambda: to_warp(rough_lines(params, seed, idx, device=device, roughness=roughness), device))
         prepared = clock("build", lambda: prepare_lines(lines, params, algorithm, boundary, d0, device, leaf_size, h_bound))
-        with serial:
-            if decoupled:
-                out = buffers.empty("force", (len(idx), prepared.steps), warp().float64, device)
-                force = clock("force", lambda: launch_force(prepared, params, algorithm, d0, device, out, params.F_N))
-                accel = None
-            else:
+        if decoupled:
+            out = buffers.empty("force", (len(idx), prepared.steps), warp().float64, device)
+            force = clock("force", lambda: launch_force(prepared, params, algorithm, d0, device, out, params.F_N))
+            accel = None
+        else:
+            with serial:
                 force, accel = clock("response", lambda: coupled_series(prepared, params, algorithm, device,
                                                                         force_offset=params.F_N,
                                                                         integrator=integrator))
@@ -296,9 +296,10 @@ class _CpuWorkers:
     ran which part.
 
     ``serial`` is a lock that one thread holds at a time: Warp 1.19 keeps the shared memory of a
-    CPU tile kernel (the sweep, the coupled dynamics) behind one pointer per module, so two of
-    them must not run at once (they crashed). Each stage's time is the mean over the threads
-    (they overlap), added to ``timings`` by :meth:`add_timings`.
+    CPU tile kernel (the coupled dynamics; the sweep's tiles, which only CUDA runs by default)
+    behind one pointer per module, so two of them must not run at once (they crashed); the
+    decoupled force kernels are plain launches on the CPU. Each stage's time is the mean over
+    the threads (they overlap), added to ``timings`` by :meth:`add_timings`.
     """
 
     def __init__(self, threads: int, timings: dict):
