@@ -35,6 +35,7 @@ n - p degrees of freedom, phi and tau, and a Kolmogorov-Smirnov test of P/S agai
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -43,11 +44,12 @@ import scipy.ndimage
 import scipy.optimize
 import scipy.stats
 
+from ..ensemble.spec import run_specs
 from ..files import jsonable
 from ..params import ParameterError
 from ..physics import TWO_PI
-from .model import (NUISANCE_DEFAULTS, PARAMETERS, Setting, check_free, contact_radius_from_load,
-                    default_free, derived, expected_psd, lambda_A, resolve_known)
+from .model import (NUISANCE_DEFAULTS, PARAMETERS, Correction, check_free, contact_radius_from_load, default_free,
+                    derived, expected_psd, lambda_A, resolve_known, setting_for)
 from .spectrum import Spectrum
 
 Z95 = scipy.stats.norm.ppf(0.975)
@@ -105,6 +107,8 @@ class FitResult:
     profiles: dict = field(default_factory=dict)
     truth: dict | None = None
     bootstrap: dict | None = None
+    correction: dict | None = None
+    correction_used: Correction | None = None
 
     def to_dict(self) -> dict:
         """A JSON-ready dict (arrays as lists; the band's data and model included)."""
@@ -117,7 +121,7 @@ class FitResult:
             "derived": self.derived, "gof": self.gof, "band_rad_s": list(self.band), "kappa": self.kappa,
             "passes": self.passes, "passes_assumed": self.passes_assumed, "success": self.success,
             "message": self.message, "quantity": self.quantity,
-            "profiles": self.profiles, "truth": self.truth, "bootstrap": self.bootstrap,
+            "profiles": self.profiles, "truth": self.truth, "bootstrap": self.bootstrap, "correction": self.correction,
             "convention": "two-sided PSD per rad/s on omega (rad/s)",
             "omega": self.omega.tolist(), "data": self.data.tolist(), "model": self.model.tolist(),
         }
@@ -143,6 +147,12 @@ class FitResult:
         lines.append(f"bins {g['bins']}, deviance/dof {g['deviance_per_dof']:.3g}, dispersion phi {g['phi']:.3g}, "
                      f"long-run factor tau {g['tau']:.3g}, KS p {g['ks_p']:.3g}, K = {self.passes}"
                      + (" (assumed)" if self.passes_assumed else ""))
+        c = self.correction
+        if c and "ratio" in c:
+            lines.append(f"simulated correction r = {min(c['ratio']):.3g} .. {max(c['ratio']):.3g} over the band, "
+                         f"{len(c['iterates'])} iterations" + ("" if c["converged"] else " (not converged)"))
+        elif c:
+            lines.append(f"simulated correction skipped: {c.get('skipped', 'not converged')}")
         return "\n".join(lines)
 
 
@@ -153,7 +163,8 @@ def _error(name: str, value: float, truth: float) -> str:
 class _Problem:
     """The data of the band, the free and fixed parameters and the objective in fitted scale."""
 
-    def __init__(self, spectrum: Spectrum, known: dict, free, band, passes, bin_size: int):
+    def __init__(self, spectrum: Spectrum, known: dict, free, band, passes, bin_size: int,
+                 correction: Correction | None = None):
         self.spectrum = spectrum
         known = resolve_known(known or {})
         v0 = known.pop("v0", None)
@@ -206,9 +217,7 @@ class _Problem:
         self.passes_assumed = passes is None and spectrum.passes is None
         self.passes = int(passes if passes is not None else (spectrum.passes or 1))
         self.kappa = self.passes * bin_size
-        step = float(np.diff(spectrum.omega).min()) if spectrum.omega.size > 1 else None
-        self.setting = Setting(spectrum.quantity, v0, spectrum.dt, spectrum.window, spectrum.line_length,
-                               bin_width=spectrum.omega[1] - spectrum.omega[0] if spectrum.uniform else step)
+        self.setting = setting_for(spectrum, v0, correction)
         positive = self.data > 0
         self.offset = float(np.mean(np.log(self.data[positive]))) + 1.0 if positive.any() else 0.0
         self.lower = np.array([_to_fitted(n, PARAMETERS[n][2]) for n in self.free])
@@ -226,7 +235,8 @@ class _Problem:
         return np.array([_to_fitted(n, p[n]) for n in self.free])
 
     def model(self, p: dict) -> np.ndarray:
-        values = expected_psd(self.omega_all, p, self.setting)
+        with np.errstate(over="ignore", invalid="ignore"):  # trial points of the searches may overflow it
+            values = expected_psd(self.omega_all, p, self.setting)  # (E*, q_min far out): the objective refuses
         return values.reshape(-1, self.bin_size).mean(axis=1)
 
     def objective(self, theta) -> float:
@@ -274,7 +284,8 @@ def _check_band(band, spectrum: Spectrum) -> tuple[float, float]:
 
 
 def fit(spectrum: Spectrum, known: dict | None = None, free=None, band=None, passes: int | None = None,
-        bin: int = 1, start: dict | None = None, profile: bool = True, profile_points: int = 9) -> FitResult:
+        bin: int = 1, start: dict | None = None, profile: bool = True, profile_points: int = 9,
+        correction=None, correction_passes: int | None = None, device: str = "auto", runner=None) -> FitResult:
     """Fit the forward model (:mod:`mdroll.inverse.model`) to ``spectrum`` by the Whittle likelihood.
 
     Parameters
@@ -288,16 +299,56 @@ def fit(spectrum: Spectrum, known: dict | None = None, free=None, band=None, pas
     bin : average this many neighbouring bins first (nu = 2 K bin).
     start : starting values for some free parameters (SI), instead of the data-driven ones.
     profile : compute the profile likelihood of each free parameter (``profile_points`` each).
+    correction : "simulated" (the default for a spectrum that carries its simulation's settings,
+        an mdroll one): the closed form times the ratio r(q) that simulations at the estimate
+        measure (:mod:`mdroll.inverse.correction`), iterated, with r's uncertainty in the
+        intervals; "none" (the default for a table): the closed form alone; or a
+        :class:`~mdroll.inverse.model.Correction` to hold fixed (e.g. ``result.correction_used``).
+    correction_passes : passes K_c of each correction ensemble (default
+        :func:`mdroll.inverse.correction.default_passes`: 32, or more to roll 80 m). device,
+        runner : where those ensembles run (:func:`mdroll.run_specs`).
 
     Returns a :class:`FitResult`. Bad input ends with a ParameterError naming it.
     """
-    problem = _Problem(spectrum, known, free, band, passes, bin)
+    simulate = _correction_mode(correction, spectrum) == "simulated"
+    if simulate and not {"L", "dx", "nu"} <= set(spectrum.simulation):
+        raise ParameterError("correction = 'simulated' needs the simulation's L, dx and nu (an mdroll spectrum, or a "
+                             "table given simulation={'L': ..., 'dx': ..., 'nu': ...}); use correction='none' otherwise")
+    problem = _Problem(spectrum, known, free, band, passes, bin,
+                       correction if isinstance(correction, Correction) else None)
     p0 = _starting_values(problem, start or {})
-    theta0 = np.clip(problem.theta(p0), problem.lower, problem.upper)
-    best = _minimize(problem, theta0)
-    theta = _polish_cutoff(problem, best.x)
-    best = _minimize(problem, theta)  # restarted: its first stop is often early, or on a bin's kink
-    theta = best.x
+    theta, best = _estimate(problem, np.clip(problem.theta(p0), problem.lower, problem.upper))
+    if simulate:
+        from . import correction as simulated
+
+        k_c = correction_passes
+        if k_c is not None and (isinstance(k_c, bool) or not isinstance(k_c, (int, np.integer)) or k_c < 1):
+            raise ParameterError(f"correction_passes = {k_c!r} is not allowed: it must be a positive integer")
+        closed_form = _result(problem, theta, best, spectrum, profile=False, profile_points=profile_points)
+        final = simulated.iterate([spectrum], [closed_form], refit=lambda jobs: [refit(job, bin) for job in jobs],
+                                  simulate=lambda specs: run_specs(specs, device=device, runner=runner),
+                                  passes=k_c)[0]
+        if not profile:
+            return final
+        result = refit((spectrum, final, final.correction_used), bin, profile=True, profile_points=profile_points)
+        result.correction = {**(result.correction or {}), **final.correction}
+        return result
+    return _result(problem, theta, best, spectrum, profile, profile_points)
+
+
+def refit(job, bin: int = 1, profile: bool = False, profile_points: int = 9) -> FitResult:
+    """Fit ``spectrum`` again like ``previous`` (its known, free, band and passes; started at its
+    estimates) with the fixed ``correction`` (None: the closed form alone): ``job = (spectrum,
+    previous, correction)`` (a top-level function: worker processes run it)."""
+    spectrum, previous, correction = job
+    return fit(spectrum, known=previous.known, free=previous.free, band=previous.band,
+               passes=None if previous.passes_assumed else previous.passes, bin=bin,
+               start={n: previous.estimates[n] for n in previous.free}, profile=profile,
+               profile_points=profile_points, correction="none" if correction is None else correction)
+
+
+def _result(problem: _Problem, theta, best, spectrum: Spectrum, profile: bool, profile_points: int) -> FitResult:
+    """The FitResult at the estimate ``theta``: intervals, goodness of fit, profiles."""
     f_hat = problem.objective(theta)
     S = problem.model(problem.params(theta))
     n, k = problem.data.size, len(problem.free)
@@ -318,6 +369,11 @@ def fit(spectrum: Spectrum, known: dict | None = None, free=None, band=None, pas
             resolution = (problem.setting.bin_width / problem.v0 / _from_fitted(name, theta[i])) ** 2 / 12.0
             cov[i, i] += resolution
             raw_cov[i, i] += resolution
+    correction_cov = _correction_covariance(problem, theta, raw_cov, jac, unidentified)
+    cov = cov + correction_cov
+    if problem.setting.correction is not None and problem.setting.correction.gain:
+        gain = np.asarray(problem.setting.correction.gain)
+        cov = cov * np.outer(gain, gain)
     sd = np.sqrt(np.abs(np.diag(cov)))
     sd_raw = np.sqrt(np.abs(np.diag(raw_cov)))
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -350,13 +406,69 @@ def fit(spectrum: Spectrum, known: dict | None = None, free=None, band=None, pas
         covariance=cov, correlation=corr, derived=_derived(problem, theta, cov), gof=gof, band=problem.band,
         kappa=kappa, passes=problem.passes, passes_assumed=problem.passes_assumed, success=bool(best.success),
         message=str(best.message), omega=problem.omega, data=problem.data, model=S, quantity=spectrum.quantity,
-        truth=_truth_of(spectrum),
+        truth=_truth_of(spectrum), correction=_correction_record(problem, correction_cov),
+        correction_used=problem.setting.correction,
     )
     if profile:
         result.profiles = _profiles(problem, theta, f_hat, sd, scale, profile_points)
         lower = min((min(v["delta"]) for v in result.profiles.values()), default=0.0)
         result.gof["profile_found_lower_minimum"] = bool(lower < -0.5)
     return result
+
+
+def _estimate(problem: _Problem, theta0):
+    """The maximum-likelihood estimate from ``theta0``: L-BFGS-B, the cutoff's scan, L-BFGS-B again
+    (restarted: its first stop is often early, or on a bin's kink)."""
+    best = _minimize(problem, theta0)
+    best = _minimize(problem, _polish_cutoff(problem, best.x))
+    return best.x, best
+
+
+def _correction_mode(correction, spectrum: Spectrum) -> str:
+    if correction is None:
+        return "simulated" if spectrum.simulation else "none"
+    if isinstance(correction, Correction):
+        return "fixed"
+    if correction not in ("simulated", "none"):
+        raise ParameterError(f"correction = {correction!r} is not allowed: use 'simulated', 'none' or a Correction")
+    return correction
+
+
+def _correction_covariance(problem: _Problem, theta, raw_cov, jac, unidentified) -> np.ndarray:
+    """What the correction's uncertainty adds to the covariance (fitted scale), by the delta
+    method: ``G cov_c G^T`` with ``G = d theta_hat / d c = -I^-1 kappa J^T J_c``, J_c = d log S / d c
+    (central differences); zero without a correction or for unidentified parameters."""
+    correction = problem.setting.correction
+    out = np.zeros_like(raw_cov)
+    if correction is None or not correction.covariance:
+        return out
+    setting = problem.setting
+    columns = []
+    for k in range(len(correction.log_ratio)):
+        logs = []
+        for step in (1e-4, -1e-4):
+            problem.setting = dataclasses.replace(setting, correction=correction.shifted(k, step))
+            logs.append(np.log(problem.model(problem.params(theta))))
+        columns.append((logs[0] - logs[1]) / 2e-4)
+    problem.setting = setting
+    keep = np.array([n not in unidentified for n in problem.free])
+    gain = -raw_cov[np.ix_(keep, keep)] @ (problem.kappa * jac[:, keep].T @ np.column_stack(columns))
+    out[np.ix_(keep, keep)] = gain @ np.asarray(correction.covariance) @ gain.T
+    return out
+
+
+def _correction_record(problem: _Problem, correction_cov) -> dict | None:
+    """The correction for the record: r at its knots with standard errors and the variance it
+    adds to each parameter (fitted scale)."""
+    correction = problem.setting.correction
+    if correction is None:
+        return None
+    q = np.exp(correction.knots)
+    ratio = correction.factor(q)
+    errors = np.sqrt(np.diag(np.asarray(correction.covariance))) if correction.covariance else np.zeros(q.size)
+    return {"q_knots": q.tolist(), "ratio": ratio.tolist(), "log_ratio_stderr": errors.tolist(),
+            "variance_fitted_scale": dict(zip(problem.free, np.diag(correction_cov).tolist())),
+            "gain": dict(zip(problem.free, correction.gain))}
 
 
 def long_run_factor(z, blocks=BLOCK_SIZES, least_blocks: int = 16):

@@ -190,6 +190,47 @@ class Setting:
     window: bool = False
     line_length: float | None = None
     bin_width: float | None = None  # d omega of the data's bins (rad/s), for the cutoff fractions
+    correction: "Correction | None" = None  # the simulated discrepancy r(q), see :class:`Correction`
+
+
+@dataclass(frozen=True)
+class Correction:
+    """The simulated discrepancy of the closed-form model: ``r(q) = exp(g(log q))``, g piecewise
+    linear between ``knots`` (log q, q in rad/m) with the values ``log_ratio`` and constant beyond
+    them. It multiplies the series' own spectrum (the leakage included; not the noise floor of a
+    measurement; before the window's stencil), so that ``S = r(q) C(omega)``: the mean of spectra
+    simulated with the exact MDR force (the contact's non-linearity included) over eq 40 and eq
+    48, smoothed over octaves (:mod:`mdroll.inverse.correction`). ``covariance``: that of ``log_ratio``; ``gain``:
+    per free parameter of the fit, the factor 1 / (1 - rho) by which the iteration to the fixed
+    point amplifies a shift of the estimate (rho its measured contraction), applied to the
+    standard errors."""
+
+    knots: tuple
+    log_ratio: tuple
+    covariance: tuple = ()
+    gain: tuple = ()
+
+    def factor(self, q) -> np.ndarray:
+        """r(q) (dimensionless) at the wavenumbers ``q`` (rad/m)."""
+        with np.errstate(divide="ignore"):
+            return np.exp(np.interp(np.log(q), self.knots, self.log_ratio))
+
+    def shifted(self, k: int, step: float) -> "Correction":
+        """The same with ``log_ratio[k]`` moved by ``step`` (for derivatives)."""
+        values = list(self.log_ratio)
+        values[k] += step
+        return Correction(self.knots, tuple(values), self.covariance, self.gain)
+
+
+def setting_for(spectrum, v0: float, correction: Correction | None = None) -> Setting:
+    """The :class:`Setting` of a :class:`~mdroll.inverse.spectrum.Spectrum` rolled at ``v0`` (m/s):
+    its quantity, dt, window, line length and bin width (the first step of a uniform grid, else
+    the smallest)."""
+    omega = spectrum.omega
+    step = float(np.diff(omega).min()) if omega.size > 1 else None
+    width = float(omega[1] - omega[0]) if spectrum.uniform else step
+    return Setting(spectrum.quantity, v0, spectrum.dt, spectrum.window, spectrum.line_length, bin_width=width,
+                   correction=correction)
 
 
 def effective_frequency(omega, dt):
@@ -241,8 +282,10 @@ def _unwindowed(omega, p: dict, setting: Setting) -> np.ndarray:
     if setting.quantity == "accel":
         psd = psd * wheel_transfer(omega, physics.contact_stiffness(p["E_star"], p["a"]), p["m"], p["zeta"], setting.dt)
     with np.errstate(divide="ignore"):
-        leak = np.where(w > 0, p["leak"] / np.where(w > 0, w, 1.0) ** 2, 0.0)
-    return psd + leak + p["noise"]
+        psd = psd + np.where(w > 0, p["leak"] / np.where(w > 0, w, 1.0) ** 2, 0.0)
+    if setting.correction is not None:  # the series' own spectrum, not the measurement's noise floor
+        psd = psd * setting.correction.factor(q)
+    return psd + p["noise"]
 
 
 def derived(p: dict) -> dict:

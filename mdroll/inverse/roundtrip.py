@@ -12,6 +12,7 @@ q_min, a, h0, E* and the nuisance a_jitter (and the noise floor in the realistic
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 
@@ -20,7 +21,8 @@ import numpy as np
 from ..ensemble.spec import EnsembleSpec, run_specs
 from ..params import ParameterError, Params
 from ..physics import TWO_PI, effective_modulus
-from .fit import fit
+from .correction import iterate, simulation_params
+from .fit import fit, refit
 from .model import load_times_radius
 from .spectrum import from_result, read_table, write_table
 
@@ -95,7 +97,8 @@ def bootstrap(spectrum, result, replicates: int, device: str = "auto", seed: int
     estimates = {n: [] for n in result.free}
     for ensemble in run_specs(specs, device=device, runner=runner):
         refit = fit(from_result(ensemble, spectrum.quantity, spectrum.window), known=result.known, free=result.free,
-                    band=result.band, passes=result.passes, bin=bin, start=start, profile=False)
+                    band=result.band, passes=result.passes, bin=bin, start=start, profile=False,
+                    correction=result.correction_used or "none")
         for n in result.free:
             estimates[n].append(refit.estimates[n])
     centre = {n: result.estimates[n] for n in estimates}
@@ -110,65 +113,71 @@ def bootstrap(spectrum, result, replicates: int, device: str = "auto", seed: int
                            for n, (lo, hi) in ci.items()}}
 
 
-def simulation_params(estimates: dict, sim: dict, passes: int) -> Params:
-    """The Params of a simulation at ``estimates`` (SI, with v0): E from E* with the simulation's nu
-    (eq 1-2), F_N = 4 a^3 E* / (3 R) (eq 14-15), the simulation's L and dx, q_min on the line's
-    grid (the nearest 2 pi k / L)."""
-    e = estimates
-    E = e["E_star"] * 2.0 * (1.0 - sim["nu"] ** 2)
-    # the lines hold the grid's modes 2 pi k / L only: q_min on the grid point nearest the estimate
-    dq = TWO_PI / (round(sim["L"] / sim["dx"]) * sim["dx"])
-    return Params(E=E, nu=sim["nu"], R=e["R"], m=e["m"], F_N=load_times_radius(e["a"], e["E_star"]) / e["R"],
-                  v0=e["v0"], L=sim["L"], dx=sim["dx"], h0=e["h0"], H=e["H"],
-                  q_min=max(1, round(e["q_min"] / dq)) * dq, n_real=passes)
-
-
 def _round_trip_spec(truth: Params, passes: int, seed: int, boundary: str = "open", window: bool = True):
     return EnsembleSpec(truth.replace(n_real=passes), seed=seed, realizations=passes, boundary=boundary, window=window)
 
 
 def round_trip(truth: Params, passes: int, seed: int = 0, device: str = "auto", known=KNOWN, band=None,
-               bin: int = 1, boundary: str = "open", window: bool = True) -> dict:
+               bin: int = 1, boundary: str = "open", window: bool = True, correction: str = "simulated") -> dict:
     """Simulate ``passes`` realizations at ``truth`` (decoupled; open boundary with the Hann window
-    unless told otherwise), invert the acceleration spectrum knowing ``known`` (and v0), compare.
+    unless told otherwise), invert the acceleration spectrum knowing ``known`` (and v0) with the
+    ``correction`` ("simulated" or "none", :func:`~mdroll.inverse.fit`), compare.
     Returns one row: the estimates, their 95 % intervals, errors (H absolute, others relative)
     and whether each interval covers."""
     t0 = time.perf_counter()
     ensemble = run_specs([_round_trip_spec(truth, passes, seed, boundary, window)], device=device)[0]
-    row = _fit_row((from_result(ensemble, "accel", window=window), {k: getattr(truth, k) for k in known}, band, bin))
-    row.update(seed=seed, simulate_s=time.perf_counter() - t0 - row["fit_s"])
-    return row
+    spectrum = from_result(ensemble, "accel", window=window)
+    t1 = time.perf_counter()
+    result = fit(spectrum, known={k: getattr(truth, k) for k in known}, band=band, bin=bin, profile=False,
+                 correction=correction, device=device)
+    return _compare(result, spectrum.truth, {"passes": passes, "L": truth.L, "seed": seed, "simulate_s": t1 - t0,
+                                             "fit_s": time.perf_counter() - t1})
 
 
-def _fit_row(job) -> dict:
-    """Fit one simulated spectrum and compare (a top-level function: worker processes run it)."""
-    spectrum, known, band, bin_size = job
-    t0 = time.perf_counter()
-    result = fit(spectrum, known=known, band=band, bin=bin_size, profile=False)
-    return _compare(result, spectrum.truth, {"passes": spectrum.passes, "L": spectrum.simulation["L"],
-                                             "fit_s": time.perf_counter() - t0})
+def _closed_form_fit(job):
+    """The closed form's fit of one simulated spectrum (a top-level function: worker processes run it)."""
+    spectrum, known = job
+    return fit(spectrum, known=known, profile=False, correction="none")
 
 
 def _compare(result, truth: dict, row: dict) -> dict:
+    """One row of the study: estimates, 95 % intervals, errors (H absolute, others relative), whether
+    each interval covers; with a correction also the closed form's errors and the iterations."""
     row = dict(row, truth={n: truth[n] for n in TARGETS if n in truth}, estimates={}, ci95={}, error={}, covered={},
-               gof={k: result.gof[k] for k in ("deviance_per_dof", "phi", "tau", "ks_p")}, success=result.success)
+               gof={k: result.gof[k] for k in ("deviance_per_dof", "phi", "tau", "ks_p")}, success=result.success,
+               message=result.message)
     for name in TARGETS:
         if name not in result.free:
             continue
         value, lo, hi, true = result.estimates[name], *result.ci95[name], truth[name]
         row["estimates"][name] = value
         row["ci95"][name] = [lo, hi]
-        row["error"][name] = value - true if name == "H" else value / true - 1.0
+        row["error"][name] = _relative(name, value, true)
         row["covered"][name] = bool(lo <= true <= hi)
+    if result.correction:
+        first = result.correction["iterates"][0]
+        row["error_closed_form"] = {n: _relative(n, first[n], truth[n]) for n in row["error"]}
+        row["iterations"] = len(result.correction["iterates"]) - ("ratio" not in result.correction)
+        row["converged"] = result.correction["converged"]
+        row["correction_ratio"] = result.correction.get("ratio")
+        row["correction_skipped"] = result.correction.get("skipped")
     return row
 
 
-def realistic_case(truth: Params, passes: int, seed: int, device: str, folder, noise_fraction: float = 0.3) -> dict:
+def _relative(name: str, value: float, truth: float) -> float:
+    return value - truth if name == "H" else value / truth - 1.0
+
+
+def realistic_case(truth: Params, passes: int, seed: int, device: str, folder, noise_fraction: float = 0.3,
+                   correction: str = "none") -> dict:
     """A measurement: the simulated acceleration spectrum as a one-sided per-Hz CSV table over 20 Hz -
     20 kHz, plus a white noise floor of ``noise_fraction`` times the PSD's mean over the top tenth
     of that band (each bin's noise a chi-square of 2K degrees of freedom), read back with
     :func:`~mdroll.inverse.read_table` and fitted with the floor free (continuous response, eq 50's
-    continuum normalization: the table does not carry dt or L)."""
+    continuum normalization: the table does not carry dt or L). ``correction``: "none" (a table's
+    default, and the study's: with the noise floor free the simulated one moves H the wrong way,
+    docs/inverse.md) or "simulated", for which the table is given the simulation's settings (L,
+    dx, nu: what the correction's ensembles need)."""
     spec = EnsembleSpec(truth.replace(n_real=passes), seed=seed, realizations=passes, boundary="open", window=True)
     ensemble = run_specs([spec], device=device)[0]
     spectrum = from_result(ensemble, "accel", window=True)
@@ -181,16 +190,23 @@ def realistic_case(truth: Params, passes: int, seed: int, device: str, folder, n
                               window=True, source="realistic")
     path = write_table(measured, folder / f"realistic_v{truth.v0:g}.csv", frequency_unit="Hz", sided="one", density="Hz")
     table = read_table(path, quantity="accel", frequency_unit="Hz", sided="one", density="Hz", passes=passes, window=True)
+    if correction == "simulated":  # a measurement's rolling distance and the model's dx and nu are known
+        table = dataclasses.replace(table, simulation=spectrum.simulation)
     t1 = time.perf_counter()
     result = fit(table, known={"m": truth.m, "R": truth.R, "v0": truth.v0},
-                 free=["H", "q_min", "a", "h0", "E_star", "a_jitter", "noise"], profile=False)
+                 free=["H", "q_min", "a", "h0", "E_star", "a_jitter", "noise"], profile=False, correction=correction,
+                 device=device)
     return _compare(result, spectrum.truth, {"passes": passes, "L": truth.L, "v0": truth.v0, "seed": seed,
                                              "noise_floor": floor, "fit_s": time.perf_counter() - t1})
 
 
 def run_study(size: str = "quick", device: str = "auto", folder=None, progress=lambda text: None, workers: int = 1,
-              passes=None, lengths=None) -> dict:
-    """Every round trip of ``SIZES[size]`` (``passes`` and ``lengths`` restrict its K and L) and the
+              passes=None, lengths=None, correction: str = "simulated", repeats: int | None = None,
+              correction_passes: int | None = None) -> dict:
+    """Every round trip of ``SIZES[size]`` (``passes`` and ``lengths`` restrict its K and L, ``repeats``
+    replaces its seeds per truth), fitted with the ``correction`` ("simulated" or "none"; its
+    ensembles of ``correction_passes`` passes, default
+    :func:`mdroll.inverse.correction.default_passes`) and the
     realistic cases; a JSON-ready record with the rows, a summary per (K, L) (median and 90th
     percentile of |error|, coverage of the 95 % intervals) and the total time.
 
@@ -203,7 +219,13 @@ def run_study(size: str = "quick", device: str = "auto", folder=None, progress=l
 
     if size not in SIZES:
         raise ParameterError(f"size = {size!r} is not allowed: use one of {', '.join(map(repr, SIZES))}")
+    if correction not in ("simulated", "none"):
+        raise ParameterError(f"correction = {correction!r} is not allowed: use 'simulated' or 'none'")
     plan = SIZES[size]
+    if repeats is not None:
+        if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
+            raise ParameterError(f"repeats = {repeats!r} is not allowed: it must be a positive integer")
+        plan = dataclasses.replace(plan, repeats=repeats)
     cells_k = tuple(plan.passes if passes is None else passes)
     cells_l = tuple(plan.lengths if lengths is None else lengths)
     folder = Path(folder or ".")
@@ -221,16 +243,24 @@ def run_study(size: str = "quick", device: str = "auto", folder=None, progress=l
                 t0 = time.perf_counter()
                 ensembles = run_specs([_round_trip_spec(t, k, s) for t, s in zip(truths, seeds)], device=device)
                 simulate_s = (time.perf_counter() - t0) / len(ensembles)
-                jobs = [(from_result(e, "accel", window=True), {n: getattr(t, n) for n in KNOWN}, None, 1)
-                        for e, t in zip(ensembles, truths)]
+                spectra = [from_result(e, "accel", window=True) for e in ensembles]
                 del ensembles
-                for (index, change, repeat), seed, row in zip(plan_rows, seeds,
-                                                              (pool.map if pool else map)(_fit_row, jobs)):
-                    row.update(change=change, seed=seed, simulate_s=simulate_s)
+                mapper = pool.map if pool else map
+                t1 = time.perf_counter()
+                results = list(mapper(_closed_form_fit, [(s, {n: getattr(t, n) for n in KNOWN})
+                                                         for s, t in zip(spectra, truths)]))
+                if correction == "simulated":
+                    results = iterate(spectra, results, refit=lambda jobs: list(mapper(refit, jobs)),
+                                      simulate=lambda specs: run_specs(specs, device=device),
+                                      passes=correction_passes)
+                fit_s = (time.perf_counter() - t1) / len(results)
+                for (index, change, repeat), seed, spectrum, result in zip(plan_rows, seeds, spectra, results):
+                    row = _compare(result, spectrum.truth, {"passes": k, "L": length, "change": change, "seed": seed,
+                                                            "simulate_s": simulate_s, "fit_s": fit_s})
                     rows.append(row)
                     progress(f"K={k} L={length} {change or 'defaults'} seed {seed}: "
                              + " ".join(f"{n} {_fmt_error(n, e)}" for n, e in row["error"].items())
-                             + f" (fit {row['fit_s']:.1f} s)")
+                             + (f" ({row['iterations']} iterations)" if "iterations" in row else ""))
     finally:
         if pool:
             pool.shutdown()
@@ -242,7 +272,8 @@ def run_study(size: str = "quick", device: str = "auto", folder=None, progress=l
             realistic.append(row)
             progress(f"realistic v0={v0}: " + " ".join(f"{n} {_fmt_error(n, e)}" for n, e in row["error"].items()))
     return {"size": size, "rows": rows, "summary": summarize(rows), "realistic": realistic, "targets": TARGETS,
-            "known": list(KNOWN) + ["v0"], "workers": workers, "seconds": time.perf_counter() - started}
+            "known": list(KNOWN) + ["v0"], "workers": workers, "correction": correction,
+            "seconds": time.perf_counter() - started}
 
 
 def _fmt_error(name: str, error: float) -> str:
@@ -287,6 +318,70 @@ def format_table(record: dict) -> str:
                  for n in names]
         lines.append(f"| {row['passes']} | {row['L']:g} | realistic v0={row['v0']:g} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
+
+
+def merge_records(records) -> dict:
+    """One record from the records of several parts of a study (their rows and realistic cases;
+    the summary recomputed, the seconds summed)."""
+    records = list(records)
+    if not records:
+        raise ParameterError("no round-trip record to report on")
+    rows = [row for r in records for row in r["rows"]]
+    return {"size": records[0]["size"], "rows": rows, "summary": summarize(rows),
+            "realistic": [row for r in records for row in r.get("realistic", [])], "targets": TARGETS,
+            "correction": records[0].get("correction", "none"), "seconds": sum(r["seconds"] for r in records)}
+
+
+def report(record: dict) -> str:
+    """The Markdown of docs/inverse.md's round-trip sections from a (merged) record: the table of
+    :func:`format_table`; where the rows carry the closed form's errors, its median |error| and
+    median signed H error beside the corrected ones; per true parameter set at the largest (K, L)
+    the median signed errors and coverage; and the fits that did not converge or were not
+    corrected."""
+    rows = record["rows"]
+    out = [format_table(record), ""]
+    corrected = [r for r in rows if "error_closed_form" in r]
+    if corrected:
+        out += ["Closed form (the first iterate) against the corrected fit: median |error|, and the median signed "
+                "error of H:", "", "| K | L (m) | H closed | H corrected | H signed closed | H signed corrected | "
+                "h0 closed (%) | h0 corrected (%) | E_star closed (%) | E_star corrected (%) |", "|" + "---|" * 10]
+        for key in sorted({(r["passes"], r["L"]) for r in corrected}):
+            cell = [r for r in corrected if (r["passes"], r["L"]) == key]
+
+            def median(name, field, signed=False):
+                values = [r[field][name] for r in cell if name in r[field]]
+                return float(np.median(values if signed else np.abs(values)))
+
+            out.append(f"| {key[0]} | {key[1]:g} | {median('H', 'error_closed_form'):.4f} | {median('H', 'error'):.4f} | "
+                       f"{median('H', 'error_closed_form', True):+.4f} | {median('H', 'error', True):+.4f} | "
+                       + " | ".join(f"{100 * median(n, 'error_closed_form'):.2f} | {100 * median(n, 'error'):.2f}"
+                                    for n in ("h0", "E_star")) + " |")
+        out.append("")
+    largest = max((r["passes"], r["L"]) for r in rows)
+    cell = [r for r in rows if (r["passes"], r["L"]) == largest]
+    out += [f"Per true parameter set at K = {largest[0]}, L = {largest[1]:g} m: median signed error (coverage):", "",
+            "| truth | trips | " + " | ".join(TARGETS) + " |", "|" + "---|" * (2 + len(TARGETS))]
+    for change in sorted({json_key(r["change"]) for r in cell}):
+        group = [r for r in cell if json_key(r["change"]) == change]
+        cells = []
+        for n in TARGETS:
+            errors = [r["error"][n] for r in group if n in r["error"]]
+            cover = np.mean([r["covered"][n] for r in group if n in r["covered"]])
+            cells.append(f"{_fmt_error(n, float(np.median(errors)))} ({100 * cover:.0f}%)")
+        out.append(f"| {change} | {len(group)} | " + " | ".join(cells) + " |")
+    failed = [r for r in rows if not r["success"]]
+    messages = sorted({r.get("message", "") for r in failed})
+    skipped = [r for r in rows if r.get("correction_skipped")]
+    unconverged = [r for r in corrected if not r.get("converged") and not r.get("correction_skipped")]
+    out += ["", f"{len(rows)} round trips; optimizer success false in {len(failed)} ({'; '.join(messages) or '-'}); "
+            f"correction skipped in {len(skipped)}, not converged in {len(unconverged)}; "
+            f"{record['seconds']:.0f} s in all."]
+    return "\n".join(out)
+
+
+def json_key(change: dict) -> str:
+    """A true parameter set's change from the defaults, as text (``defaults`` for none)."""
+    return ", ".join(f"{k}={v:.6g}" for k, v in sorted(change.items())) or "defaults"
 
 
 def plot_study(record: dict, path) -> None:
