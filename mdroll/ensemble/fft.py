@@ -45,7 +45,7 @@ def _cpu_plan(kind: str, n: int):
             plan = pyfftw.FFTW(half, real, direction="FFTW_BACKWARD", flags=("FFTW_ESTIMATE",), threads=key[2])
         else:
             plan = pyfftw.FFTW(real, half, direction="FFTW_FORWARD", flags=("FFTW_ESTIMATE",), threads=key[2])
-        plan = (plan, plan.input_array, plan.output_array)
+        plan = (plan, plan.input_array, plan.output_array, kind == "rfft")
         if len(plans) >= CPU_PLANS:
             del plans[next(iter(plans))]
     plans[key] = plan  # most recently used last
@@ -54,11 +54,14 @@ def _cpu_plan(kind: str, n: int):
 
 def _cpu_rows(plan, x: np.ndarray, out: np.ndarray) -> None:
     """``out[i] = transform(x[i])`` for each row by a plan of :func:`_cpu_plan`: in place of the
-    caller's rows where they are aligned as the plan's (no copy), else through the plan's own."""
-    plan, own_in, own_out = plan
+    caller's rows where they are aligned as the plan's (no copy), else through the plan's own.
+    The forward plan always reads a copy in its own row: the copy streams the row into the cache
+    ahead of FFTW's strided passes (995,328 points, one core: ~8.2 ms a row with the copy, ~10.2
+    without)."""
+    plan, own_in, own_out, copy_in = plan
     alignment = plan.input_alignment
     for src, dst in zip(x, out):
-        src_fits = src.ctypes.data % alignment == 0 and src.strides == own_in.strides
+        src_fits = not copy_in and src.ctypes.data % alignment == 0 and src.strides == own_in.strides
         dst_fits = dst.ctypes.data % plan.output_alignment == 0 and dst.strides == own_out.strides
         if not src_fits:
             own_in[:] = src
