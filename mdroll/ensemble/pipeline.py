@@ -298,8 +298,12 @@ class _CpuWorkers:
     ``serial`` is a lock that one thread holds at a time: Warp 1.19 keeps the shared memory of a
     CPU tile kernel (the coupled dynamics; the sweep's tiles, which only CUDA runs by default)
     behind one pointer per module, so two of them must not run at once (they crashed); the
-    decoupled force kernels are plain launches on the CPU. Each stage's time is the mean over
-    the threads (they overlap), added to ``timings`` by :meth:`add_timings`.
+    decoupled force kernels are plain launches on the CPU. ``loading`` is held through each
+    thread's first part: Warp 1.19 loads a module's CPU code at its first launch without a
+    lock, and two threads loading the same module at once can free the code the other is
+    running (segfaults in the plugin's and the studies' tests, now and then); after one thread's
+    first part every module of the path is loaded. Each stage's time is the mean over the
+    threads (they overlap), added to ``timings`` by :meth:`add_timings`.
     """
 
     def __init__(self, threads: int, timings: dict):
@@ -308,6 +312,7 @@ class _CpuWorkers:
         self.pool = ThreadPoolExecutor(threads) if threads > 1 else None
         self.timings = timings
         self.serial = threading.Lock()
+        self.loading = threading.Lock()
         self.local = threading.local()
         self.clocks = []
 
@@ -320,12 +325,16 @@ class _CpuWorkers:
         from .fft import fftw_threads
 
         state = self.local.__dict__
-        if not state:  # this thread's first part
+        first = not state
+        if first:
             state["buffers"] = buffers.Buffers()
             state["clock"] = _StageClock("cpu", dict.fromkeys(self.timings, 0.0))
             self.clocks.append(state["clock"])
         with fftw_threads(1), buffers.reused(state["buffers"]):
-            return work(part, state["clock"], self.serial)
+            if not first:
+                return work(part, state["clock"], self.serial)
+            with self.loading:
+                return work(part, state["clock"], self.serial)
 
     def add_timings(self) -> None:
         """Add each stage's mean time over the threads since the last call to ``timings``."""
