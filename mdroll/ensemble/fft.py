@@ -129,7 +129,8 @@ def irfft_rows(spectrum, n: int, device: str):
     the transform overwrites it. On CUDA the cached cuFFT plan runs on the spectrum's own memory:
     CuPy's ``irfft`` would first copy a view like this one, and scale by 1/n in a second pass,
     ~1.8 ms of the 7.1 it took at 300 x 2^20 on an H200 (docs/performance.md, v7c).
-    Returns a float64 NumPy array on the CPU, a float64 Warp array on CUDA.
+    Returns a float64 NumPy array on the CPU (within :func:`mdroll.ensemble.buffers.reused`, the
+    thread's buffer "lines"), a float64 Warp array on CUDA.
     """
     wp = warp()
     if is_cuda(device):
