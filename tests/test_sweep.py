@@ -156,17 +156,19 @@ def test_sweep_runs_decoupled_ensembles_and_refuses_the_coupled_mode():
         run_ensemble(p, algorithm="sweep", mode="coupled", progress=False)
 
 
-def test_band_beyond_the_exact_int32_sums_is_refused():
+def test_band_beyond_the_tiles_int32_sums_runs_sequentially(device):
     """A band of uncertain contact wider than MAX_BAND springs (a spring below the wheel's reach
-    at every position makes the whole window uncertain) is refused with one clear line, before
-    the kernel runs; the same window with a narrow band is computed."""
+    at every position makes the whole window uncertain) runs in the sequential form, equal to
+    the tree; the tiles asked for there are refused with one clear line, before the kernel
+    runs."""
     from mdroll import ParameterError
     from mdroll.kernels.sweep import MAX_BAND
 
     a = Params().a
     p = Params(L=4.2 * a, dx=a / (1.2 * MAX_BAND))
     lines = np.zeros((1, p.n_points))
-    assert contact_force(lines, p, "sweep").shape[0] == 1  # flat: no band at all
     lines[0, 0] = -2 * p.d0
+    tree = to_numpy(contact_force(lines, p, "tree", device=device))
+    assert np.max(np.abs(to_numpy(contact_force(lines, p, "sweep", device=device)) - tree)) <= 1e-12 * p.F_N
     with pytest.raises(ParameterError, match=rf"band of uncertain contact spans \d+ springs .* beyond the {MAX_BAND}"):
-        contact_force(lines, p, "sweep")
+        _sweep(lines, p, "open", p.d0, device, form="tiles")

@@ -24,8 +24,10 @@ CUDA_MIN_TILE = 512
 CUDA_LOADS = 2
 #: CPU: Warp runs a block as one lane; a longer tile reads the anchors' bands less often.
 CPU_MIN_TILE = 4096
-#: The sequential form: steps a thread (a chunk reads the anchor's 2 band springs once).
+#: The sequential form: steps a thread, at least SEQUENTIAL_CHUNK_PER_BAND times the band (a
+#: chunk reads the anchor's 2 band springs once, and its ring holds band + 1 slots).
 SEQUENTIAL_CHUNK = 1 << 15
+SEQUENTIAL_CHUNK_PER_BAND = 16
 #: The sweep's forms and the one each kind of device runs by default.
 FORMS = ("tiles", "sequential")
 DEFAULT_FORM = {"cuda": "tiles", "cpu": "sequential"}
@@ -73,10 +75,11 @@ def sweep_command(prepared, params: Params, d: float, device: str, out=None, off
     :func:`mdroll.ensemble.prepare.prepare_lines`). ``form`` (:data:`FORMS`) picks the kernel,
     by default :data:`DEFAULT_FORM` of the device's kind; for the tiles ``tile_steps`` and
     ``block_dim`` override the defaults of :func:`sweep_tile` and ``loads`` CUDA_LOADS (1 on the
-    CPU); for the sequential form ``chunk`` overrides SEQUENTIAL_CHUNK. The force is the same to
-    rounding whatever they are. Refuses (ParameterError) a batch whose band of uncertain contact
-    is wider than :data:`mdroll.kernels.sweep.MAX_BAND` springs, where the tiles' int32 sums
-    could overflow.
+    CPU); for the sequential form ``chunk`` overrides the default of max(SEQUENTIAL_CHUNK,
+    SEQUENTIAL_CHUNK_PER_BAND x band). The force is the same to rounding whatever they are. A
+    batch whose band of uncertain contact is wider than :data:`mdroll.kernels.sweep.MAX_BAND`
+    springs, where the tiles' int32 sums could overflow, runs in the sequential form (exact at
+    any band); ``form="tiles"`` asked for then is refused (ParameterError).
     """
     from ..kernels.sweep import MAX_BAND, contact_force_sequential, sweep_kernel
 
@@ -86,19 +89,21 @@ def sweep_command(prepared, params: Params, d: float, device: str, out=None, off
     curvature = physics.indenter_profile(params.dx, params.R)  # eq 7 at one spacing
     # the widest band of the batch (each row's own is narrower): from its lowest and highest spring
     band = reach_strict(d + p.h_top, curvature) - max(reach_strict(d + p.h_low, curvature), 0)
-    if band > MAX_BAND:
-        raise ParameterError(
-            f"the sweep's band of uncertain contact spans {band} springs a side at dx = {params.dx!r} m, d = {d:.4g} m "
-            f"and heights {p.h_low:.4g} .. {p.h_top:.4g} m, beyond the {MAX_BAND} its exact int32 sums allow: use "
-            f"the tree"
-        )
     if form is None:
         form = DEFAULT_FORM["cuda" if is_cuda(device) else "cpu"]
+        if band > MAX_BAND:
+            form = "sequential"
     if form not in FORMS:
         raise ParameterError(f"form = {form!r}: the sweep's forms are {', '.join(map(repr, FORMS))}")
+    if form == "tiles" and band > MAX_BAND:
+        raise ParameterError(
+            f"the sweep's band of uncertain contact spans {band} springs a side at dx = {params.dx!r} m, d = {d:.4g} m "
+            f"and heights {p.h_low:.4g} .. {p.h_top:.4g} m, beyond the {MAX_BAND} the tiles' exact int32 sums allow: "
+            f"use form='sequential'"
+        )
     force = out if out is not None else wp.empty((rows, p.steps), dtype=wp.float64, device=device)
     if form == "sequential":
-        chunk = chunk or SEQUENTIAL_CHUNK
+        chunk = chunk or max(SEQUENTIAL_CHUNK, 1 << (SEQUENTIAL_CHUNK_PER_BAND * band - 1).bit_length())
         chunks = -(-p.steps // chunk)
         # a thread's ring: one slot a step for the band's steps ahead, and the current step's
         ring_packed = wp.empty((rows, chunks, band + 1), dtype=wp.int64, device=device)
