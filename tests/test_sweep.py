@@ -159,8 +159,8 @@ def test_sweep_runs_decoupled_ensembles_and_refuses_the_coupled_mode():
 def test_band_beyond_the_tiles_int32_sums_runs_sequentially(device):
     """A band of uncertain contact wider than MAX_BAND springs (a spring below the wheel's reach
     at every position makes the whole window uncertain) runs in the sequential form, equal to
-    the tree; the tiles asked for there are refused with one clear line, before the kernel
-    runs."""
+    the tree; the tiles asked for there, or a form that does not exist, are refused with one
+    clear line, before the kernel runs."""
     from mdroll import ParameterError
     from mdroll.kernels.sweep import MAX_BAND
 
@@ -172,3 +172,5 @@ def test_band_beyond_the_tiles_int32_sums_runs_sequentially(device):
     assert np.max(np.abs(to_numpy(contact_force(lines, p, "sweep", device=device)) - tree)) <= 1e-12 * p.F_N
     with pytest.raises(ParameterError, match=rf"band of uncertain contact spans \d+ springs .* beyond the {MAX_BAND}"):
         _sweep(lines, p, "open", p.d0, device, form="tiles")
+    with pytest.raises(ParameterError, match="form = 'rows': the sweep's forms are 'tiles', 'sequential'"):
+        _sweep(lines, p, "open", p.d0, device, form="rows")

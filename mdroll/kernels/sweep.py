@@ -393,6 +393,30 @@ def packed_event(count: int, offsets: int) -> wp.int64:
     return wp.int64(count) * COUNT_UNIT + wp.int64(offsets)
 
 
+@wp.func
+def record_event(
+    ring_packed: wp.array3d(dtype=wp.int64),
+    ring_value: wp.array3d(dtype=wp.float64),
+    r: int,
+    j: int,
+    at: int,
+    slots: int,
+    sign: int,
+    m: int,
+    h: wp.float64,
+    curvature: wp.float64,
+):
+    """Record in ring slot ``at`` (brought back once past ``slots``) of thread (r, j) a spring of
+    height h (m) entering (``sign`` +1) at offset m, or leaving (-1) from offset m: N changes by
+    ``sign``, P by ``sign m`` (never negative: an exit's m is ``-reach - 1``), V by
+    ``sign (h - curvature m^2)``."""
+    slot = at
+    if slot >= slots:
+        slot -= slots
+    ring_packed[r, j, slot] += packed_event(sign, sign * m)
+    ring_value[r, j, slot] += wp.float64(sign) * (h - curvature * wp.float64(m) * wp.float64(m))
+
+
 @wp.kernel(enable_backward=False)
 def contact_force_sequential(
     lines: wp.array2d(dtype=wp.float64),
@@ -444,9 +468,7 @@ def contact_force_sequential(
                 offsets += wp.int64(m)
                 level += h - curvature * wp.float64(m) * wp.float64(m)
             elif reach >= 0:
-                along = wp.float64(reach)
-                ring_packed[r, j, m - reach] += packed_event(1, reach)
-                ring_value[r, j, m - reach] += h - curvature * along * along
+                record_event(ring_packed, ring_value, r, j, m - reach, slots, 1, reach, h, curvature)
     for m in range(-outer, -near):  # left band: in contact, and leaving at m + reach + 1
         if c + m >= 0:
             h = row[c + m]
@@ -455,9 +477,7 @@ def contact_force_sequential(
                 count += wp.int64(1)
                 offsets += wp.int64(m)
                 level += h - curvature * wp.float64(m) * wp.float64(m)
-                along = wp.float64(reach + 1)
-                ring_packed[r, j, m + reach + 1] += packed_event(-1, reach + 1)
-                ring_value[r, j, m + reach + 1] += curvature * along * along - h
+                record_event(ring_packed, ring_value, r, j, m + reach + 1, slots, -1, -reach - 1, h, curvature)
     force[r, s_begin] = k_spring * (level + wp.float64(count) * d) - offset
 
     slot = int(0)  # the ring slot of the current step (slot of step t: t mod slots)
@@ -470,22 +490,13 @@ def contact_force_sequential(
             h = row[wheel + outer]
             reach = reach_strict(h + d, curvature)
             if reach >= 0:
-                at = slot + outer - reach
-                if at >= slots:
-                    at -= slots
-                along = wp.float64(reach)
-                ring_packed[r, j, at] += packed_event(1, reach)
-                ring_value[r, j, at] += h - curvature * along * along
+                record_event(ring_packed, ring_value, r, j, slot + outer - reach, slots, 1, reach, h, curvature)
         if wheel - near - 1 >= 0:  # leaves reach - near steps later, from offset -reach - 1
             h = row[wheel - near - 1]
             reach = reach_strict(h + d, curvature)
             if reach >= 0:
-                at = slot + reach - near
-                if at >= slots:
-                    at -= slots
-                along = wp.float64(reach + 1)
-                ring_packed[r, j, at] += packed_event(-1, reach + 1)
-                ring_value[r, j, at] += curvature * along * along - h
+                record_event(ring_packed, ring_value, r, j, slot + reach - near, slots, -1, -reach - 1, h,
+                             curvature)
         # one step: every offset -1, then the step's events
         level += curvature * wp.float64(wp.int64(2) * offsets - count)
         offsets -= count
