@@ -188,6 +188,11 @@ def _parser() -> argparse.ArgumentParser:
                        "alone (the default for tables)")
     p_inv.add_argument("--correction-passes", type=int, metavar="K", help="passes of each correction ensemble "
                        "(default 32, or more to roll 80 m)")
+    p_inv.add_argument("--fill-check", choices=["auto", "on", "off"], default="auto", help="refit with a_jitter held "
+                       "at eq 47's h0 R / (2 a) and widen the intervals by the shift (auto, the default: where the noise "
+                       "floor and a_jitter are both free, as they trade; on: wherever a_jitter is free)")
+    p_inv.add_argument("--realistic-only", action="store_true", help="round trip: only the realistic cases (a "
+                       "one-sided per-Hz table over 20 Hz - 20 kHz with a noise floor)")
     output(p_inv)
 
     p_bench = sub.add_parser("bench", help="scaling study of the three algorithms: bench.json, bench.png and a table")
@@ -698,7 +703,8 @@ def cmd_invert(args) -> int:
         record = run_study(args.size or "quick", device=resolve_device(args.device), folder=out, progress=say,
                            workers=args.workers, passes=_numbers(args.passes_list, int, "--passes-list"),
                            lengths=_numbers(args.lengths, float, "--lengths"), correction=args.correction or "simulated",
-                           repeats=args.repeats, correction_passes=args.correction_passes)
+                           repeats=args.repeats, correction_passes=args.correction_passes,
+                           realistic_only=args.realistic_only)
         with atomic_write(out / "roundtrip.png") as file:
             plot_study(record, file)
         with atomic_write(out / "roundtrip.md", "w") as file:
@@ -718,7 +724,7 @@ def cmd_invert(args) -> int:
     free = [n.strip() for n in args.free.split(",") if n.strip()] if args.free else None
     result = fit(spectrum, known=_known(args.known), free=free, band=_band(args.band) if args.band else None,
                  passes=args.passes, bin=args.bin, profile=not args.no_profile, correction=args.correction,
-                 correction_passes=args.correction_passes, device=resolve_device(args.device))
+                 correction_passes=args.correction_passes, device=resolve_device(args.device), fill_check=args.fill_check)
     if args.bootstrap:
         from .inverse.roundtrip import bootstrap
 

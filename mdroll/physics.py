@@ -135,6 +135,16 @@ def edge_coefficient(E_star, R, a):
     return E_star * R / (4.0 * a)
 
 
+def edge_displacement(h, R, a):
+    """Eq 47 (edge displacement): how far a contact edge moves when the roughness under it rises by
+    h, ``da = h / g'(a) = h R / (2 a)`` (the gap's slope at the edge g'(a) = 2 a / R; physics.md
+    section 4, the derivation of eq 47-49).
+
+    Parameters: ``h`` height (m), ``R`` wheel radius (m), ``a`` contact radius (m). Returns da (m).
+    """
+    return h * R / (2.0 * a)
+
+
 def contact_window_transform(q, a):
     """Eq 38: Fourier transform of the contact window, the indicator of [-a, a],
     ``W(q) = integral_{-a}^{a} exp(-i q x) dx = 2 sin(q a) / q`` (``2 a`` at q = 0).

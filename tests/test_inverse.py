@@ -94,6 +94,8 @@ def test_bad_fit_inputs():
         fit(s, known={"mass": 1.0})
     with pytest.raises(ParameterError, match="E_star and h0 are degenerate"):
         fit(s, known={"R": 0.5}, free=["E_star", "h0"])
+    with pytest.raises(ParameterError, match="fill_check = 'always' is not allowed"):
+        fit(s, known=known, fill_check="always")
     with pytest.raises(ParameterError, match="v0 is not known"):
         fit(table_spectrum(s.omega, s.psd, quantity="force", frequency_unit="rad/s", sided="two", density="rad/s"),
             known=known)
@@ -288,3 +290,54 @@ def test_simulated_correction_covers_H_where_the_closed_form_does_not():
     with pytest.raises(ParameterError, match="simulation's L"):
         fit(table_spectrum(spectrum.omega, spectrum.psd, frequency_unit="rad/s", sided="two", density="rad/s",
                            passes=100), known={**known, "v0": p.v0}, correction="simulated")
+
+
+# ------------------------------------------------------------------------------------------ fill check
+REALISTIC_FREE = "H,q_min,a,h0,E_star,a_jitter,noise"
+
+
+def _invert_table(path, v0, out, *options):
+    """`mdroll invert` on a realistic case's table (one-sided per Hz, 100 passes, Hann window), the
+    noise floor free; returns inverse.json."""
+    assert main(["invert", str(path), "--frequency-unit", "Hz", "--sided", "one", "--density", "Hz", "--passes", "100",
+                 "--window", "--known", f"v0={v0}", "--known", "m=500", "--known", "R=0.5", "--free", REALISTIC_FREE,
+                 "--no-profile", "--out", str(out), *options]) == 0
+    return json.loads((out / "inverse.json").read_text())
+
+
+def test_fill_check_covers_h0_and_E_star_where_the_floor_and_the_jitter_trade(tmp_path):
+    """The realistic case at v0 = 20 m/s (K = 100, L = 1 m, seed 7; the 20 kHz band ends at 5 q_min
+    with the white floor a quarter of the spectrum there): free together, the floor and a_jitter
+    trade (a_jitter 15 um where eq 47 gives 24 um) and h0 (-12 %) and E* (+14 %) follow, outside
+    the local intervals (`--fill-check off`). The fill check, the default with both free, refits
+    with a_jitter at eq 47's h0 R / (2 a) and widens by the shift: both intervals cover."""
+    from mdroll.inverse.roundtrip import realistic_case
+
+    truth = mdroll.Params(L=1.0, v0=20.0)
+    row = realistic_case(truth, 100, seed=7, device="cpu", folder=tmp_path)
+    assert row["error"]["h0"] < -0.08 and row["error"]["E_star"] > 0.08
+    check = row["fill_check"]
+    assert check["a_jitter_fitted"] < 0.8 * check["a_jitter_edge"]
+    assert physics.edge_displacement(truth.h0, truth.R, truth.a) == pytest.approx(check["a_jitter_edge"], rel=0.15)
+    for name in ("h0", "E_star"):
+        assert row["covered"][name] and not check["covered_local"][name], name
+        assert check["widening"][name] > 2.0
+    assert row["covered"]["a"] and check["widening"]["a"] < 1.05  # a does not trade with the fill
+    local = _invert_table(tmp_path / "realistic_v20.csv", 20, tmp_path / "off", "--fill-check", "off")
+    lo, hi = local["ci95"]["E_star"]
+    assert local["fill_check"] is None and not lo <= truth.E_star <= hi
+
+
+def test_fill_check_leaves_separable_fits_alone(tmp_path):
+    """At v0 = 10 m/s the band reaches 10 q_min: the data separate the floor from the jitter
+    (a_jitter within 5 % of eq 47's), the check's shift is small, and no interval widens by more
+    than 1.3x (measured: at most 1.02x)."""
+    from mdroll.inverse.roundtrip import realistic_case
+
+    truth = mdroll.Params(L=1.0, v0=10.0)
+    realistic_case(truth, 100, seed=7, device="cpu", folder=tmp_path)
+    record = _invert_table(tmp_path / "realistic_v10.csv", 10, tmp_path / "inv")
+    check = record["fill_check"]
+    assert check["a_jitter_fitted"] == pytest.approx(check["a_jitter_edge"], rel=0.05)
+    assert set(check["widening"]) == set(REALISTIC_FREE.split(","))
+    assert all(1.0 <= w < 1.3 for w in check["widening"].values()), check["widening"]

@@ -111,6 +111,11 @@ def test_contact_at_the_thesis_defaults():
     assert physics.indenter_profile(a, 0.5) == pytest.approx(d0, rel=1e-14)
     assert physics.indenter_profile(5e-6, 0.5) == pytest.approx(5e-11, rel=1e-15)
     assert physics.edge_coefficient(E_STAR, 0.5, a) == pytest.approx(E_STAR * 0.5 / (4 * A), rel=1e-14)
+    # eq 47: raising the profile's edge by h moves the edge to where g = d0 + h, g the MDR profile
+    h = 1e-9
+    moved = float(__import__("scipy.optimize").optimize.brentq(lambda x: physics.indenter_profile(x, 0.5) - d0 - h, a, 2 * a,
+                                                               xtol=1e-22, rtol=1e-15))
+    assert physics.edge_displacement(h, 0.5, a) == pytest.approx(moved - a, rel=1e-5)
 
 
 @pytest.mark.parametrize("F_N, R, E", [(40e3, 0.5, 210e9), (1e3, 0.1, 70e9), (2e5, 0.46, 200e9)])

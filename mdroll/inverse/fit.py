@@ -47,7 +47,7 @@ import scipy.stats
 from ..ensemble.spec import run_specs
 from ..files import jsonable
 from ..params import ParameterError
-from ..physics import TWO_PI
+from ..physics import TWO_PI, edge_displacement
 from .model import (NUISANCE_DEFAULTS, PARAMETERS, Correction, check_free, contact_radius_from_load, default_free,
                     derived, expected_psd, lambda_A, resolve_known, setting_for)
 from .spectrum import Spectrum
@@ -71,6 +71,14 @@ SIMULATED_BAND_TOP = 0.05
 #: force's near omega_0 (the record's end states cancel part of the peak), while above it the
 #: response's shape ((1 - omega_0^2 / omega^2)^-2: x1.78 at 2 omega_0) still fixes E* with m.
 RESONANCE_MARGIN = 2.0
+#: When the fill check runs (:func:`fit`'s ``fill_check``): "auto" where the noise floor and the
+#: contact-radius jitter are both free (the two nuisances that fill the zeros of sin^2(q a)),
+#: "on" wherever the jitter is free, "off" never.
+FILL_CHECKS = ("auto", "on", "off")
+#: The fill check's refits hold a_jitter at eq 47's h R / (2 a) of their own estimate: at most
+#: this many, until it changes by less than :data:`FILL_CHECK_TOLERANCE` (relative).
+FILL_CHECK_ITERATIONS = 5
+FILL_CHECK_TOLERANCE = 1e-3
 _HUGE = 1e30
 
 
@@ -109,6 +117,7 @@ class FitResult:
     bootstrap: dict | None = None
     correction: dict | None = None
     correction_used: Correction | None = None
+    fill_check: dict | None = None
 
     def to_dict(self) -> dict:
         """A JSON-ready dict (arrays as lists; the band's data and model included)."""
@@ -122,6 +131,7 @@ class FitResult:
             "passes": self.passes, "passes_assumed": self.passes_assumed, "success": self.success,
             "message": self.message, "quantity": self.quantity,
             "profiles": self.profiles, "truth": self.truth, "bootstrap": self.bootstrap, "correction": self.correction,
+            "fill_check": self.fill_check,
             "convention": "two-sided PSD per rad/s on omega (rad/s)",
             "omega": self.omega.tolist(), "data": self.data.tolist(), "model": self.model.tolist(),
         }
@@ -153,6 +163,11 @@ class FitResult:
                          f"{len(c['iterates'])} iterations" + ("" if c["converged"] else " (not converged)"))
         elif c:
             lines.append(f"simulated correction skipped: {c.get('skipped', 'not converged')}")
+        f = self.fill_check
+        if f:
+            widened = ", ".join(f"{n} x{w:.2g}" for n, w in f["widening"].items() if w >= 1.1) or "none by 10 %"
+            lines.append(f"fill check: a_jitter {f['a_jitter_fitted']:.3g} m fitted, {f['a_jitter_edge']:.3g} m by eq 47; "
+                         f"intervals widened by the shift to it: {widened}")
         return "\n".join(lines)
 
 
@@ -285,7 +300,8 @@ def _check_band(band, spectrum: Spectrum) -> tuple[float, float]:
 
 def fit(spectrum: Spectrum, known: dict | None = None, free=None, band=None, passes: int | None = None,
         bin: int = 1, start: dict | None = None, profile: bool = True, profile_points: int = 9,
-        correction=None, correction_passes: int | None = None, device: str = "auto", runner=None) -> FitResult:
+        correction=None, correction_passes: int | None = None, device: str = "auto", runner=None,
+        fill_check: str = "auto") -> FitResult:
     """Fit the forward model (:mod:`mdroll.inverse.model`) to ``spectrum`` by the Whittle likelihood.
 
     Parameters
@@ -307,9 +323,15 @@ def fit(spectrum: Spectrum, known: dict | None = None, free=None, band=None, pas
     correction_passes : passes K_c of each correction ensemble (default
         :func:`mdroll.inverse.correction.default_passes`: 32, or more to roll 80 m). device,
         runner : where those ensembles run (:func:`mdroll.run_specs`).
+    fill_check : "auto" (default), "on" or "off" (:data:`FILL_CHECKS`): refit with a_jitter held at
+        the edge displacement of eq 47, ``h0 R / (2 a)`` of the refit's own estimate, and add the
+        shift of every free parameter to its variance (:func:`_fill_check`); "auto" where the noise
+        floor and a_jitter are both free, "on" wherever a_jitter is free.
 
     Returns a :class:`FitResult`. Bad input ends with a ParameterError naming it.
     """
+    if fill_check not in FILL_CHECKS:
+        raise ParameterError(f"fill_check = {fill_check!r} is not allowed: use one of {', '.join(map(repr, FILL_CHECKS))}")
     simulate = _correction_mode(correction, spectrum) == "simulated"
     if simulate and not {"L", "dx", "nu"} <= set(spectrum.simulation):
         raise ParameterError("correction = 'simulated' needs the simulation's L, dx and nu (an mdroll spectrum, or a "
@@ -325,26 +347,89 @@ def fit(spectrum: Spectrum, known: dict | None = None, free=None, band=None, pas
         if k_c is not None and (isinstance(k_c, bool) or not isinstance(k_c, (int, np.integer)) or k_c < 1):
             raise ParameterError(f"correction_passes = {k_c!r} is not allowed: it must be a positive integer")
         closed_form = _result(problem, theta, best, spectrum, profile=False, profile_points=profile_points)
-        final = simulated.iterate([spectrum], [closed_form], refit=lambda jobs: [refit(job, bin) for job in jobs],
-                                  simulate=lambda specs: run_specs(specs, device=device, runner=runner),
-                                  passes=k_c)[0]
-        if not profile:
-            return final
-        result = refit((spectrum, final, final.correction_used), bin, profile=True, profile_points=profile_points)
-        result.correction = {**(result.correction or {}), **final.correction}
-        return result
-    return _result(problem, theta, best, spectrum, profile, profile_points)
+        result = simulated.iterate([spectrum], [closed_form], refit=lambda jobs: [refit(job, bin) for job in jobs],
+                                   simulate=lambda specs: run_specs(specs, device=device, runner=runner),
+                                   passes=k_c)[0]
+        if profile:
+            final = result
+            result = refit((spectrum, final, final.correction_used), bin, profile=True, profile_points=profile_points)
+            result.correction = {**(result.correction or {}), **final.correction}
+    else:
+        result = _result(problem, theta, best, spectrum, profile, profile_points)
+    return _fill_check(spectrum, result, bin, fill_check)
 
 
 def refit(job, bin: int = 1, profile: bool = False, profile_points: int = 9) -> FitResult:
     """Fit ``spectrum`` again like ``previous`` (its known, free, band and passes; started at its
     estimates) with the fixed ``correction`` (None: the closed form alone): ``job = (spectrum,
-    previous, correction)`` (a top-level function: worker processes run it)."""
+    previous, correction)`` (a top-level function: worker processes run it). Without the fill check:
+    :func:`fit` runs it once, on its final result."""
     spectrum, previous, correction = job
     return fit(spectrum, known=previous.known, free=previous.free, band=previous.band,
                passes=None if previous.passes_assumed else previous.passes, bin=bin,
                start={n: previous.estimates[n] for n in previous.free}, profile=profile,
-               profile_points=profile_points, correction="none" if correction is None else correction)
+               profile_points=profile_points, correction="none" if correction is None else correction,
+               fill_check="off")
+
+
+def _fill_check(spectrum: Spectrum, result: FitResult, bin: int, mode: str) -> FitResult:
+    """The fill check (docs/inverse.md, "When the nuisances trade"): where it applies (``mode``,
+    :data:`FILL_CHECKS`), refit with a_jitter held at the edge displacement of eq 47,
+    ``s_a = h0 R / (2 a)`` of the refit's own estimate (iterated to that fixed point; the other
+    parameters free, the correction held), and widen the covariance (fitted scale) by the shift d
+    of the free parameters, ``cov + d d^T`` (a_jitter's own: from its fitted value to eq 47's).
+
+    Why: a white noise floor fills the zeros of sin^2(q a) as the jitter does. Free together, they
+    trade, and the high band's level, hence h0 and E*, follows them: h0 -12 %, E* +14 % at v0 =
+    20 m/s (a_jitter 15 um fitted where eq 47 gives 24 um), outside intervals that a local
+    expansion computes. Where the data separate them, the fitted jitter is eq 47's (23-26 um
+    against 24.7 um at the defaults) and d is small against the standard errors."""
+    applies = "a_jitter" in result.free and (mode == "on" or (mode == "auto" and "noise" in result.free))
+    free = [n for n in result.free if n != "a_jitter"]
+    if not applies or not free:
+        return result
+    tied, jitter = result, None
+    for _ in range(FILL_CHECK_ITERATIONS):
+        p = tied.estimates
+        previous, jitter = jitter, float(edge_displacement(p["h0"], p["R"], p["a"]))
+        if previous is not None and abs(jitter / previous - 1.0) < FILL_CHECK_TOLERANCE:
+            break
+        tied = fit(spectrum, known={**result.known, "a_jitter": jitter}, free=free, band=result.band,
+                   passes=None if result.passes_assumed else result.passes, bin=bin,
+                   start={n: p[n] for n in free}, profile=False,
+                   correction=result.correction_used or "none", fill_check="off")
+    values = {**{n: tied.estimates[n] for n in free}, "a_jitter": jitter}
+    shift = np.array([_to_fitted(n, values[n]) - _to_fitted(n, result.estimates[n]) for n in result.free])
+    problem = _Problem(spectrum, result.known, result.free, result.band,
+                       None if result.passes_assumed else result.passes, bin, result.correction_used)
+    theta = problem.theta(result.estimates)
+    cov = result.covariance + np.outer(shift, shift)
+    sd = np.sqrt(np.abs(np.diag(cov)))
+    before = dict(result.stderr)
+    ci, stderr = _intervals(result.free, theta, result.estimates, sd)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        correlation = cov / np.outer(sd, sd)
+    record = {"rule": mode, "a_jitter_fitted": result.estimates["a_jitter"], "a_jitter_edge": jitter,
+              "estimates_held": values, "shift_fitted_scale": dict(zip(result.free, shift.tolist())),
+              "stderr_local": before, "ci95_local": {n: list(v) for n, v in result.ci95.items()},
+              "widening": {n: stderr[n] / before[n] if 0 < before[n] < math.inf else 1.0 for n in result.free}}
+    return dataclasses.replace(result, covariance=cov, correlation=correlation, stderr=stderr, ci95=ci,
+                               derived=_derived(problem, theta, cov), fill_check=record)
+
+
+def _intervals(free, theta, estimates: dict, sd) -> tuple[dict, dict]:
+    """The 95 % intervals, symmetric in the fitted scale, and the standard errors (SI) of the free
+    parameters from their standard deviations ``sd`` in the fitted scale; unbounded where sd is
+    not finite (an unidentified parameter)."""
+    ci, stderr = {}, {}
+    for i, name in enumerate(free):
+        if not np.isfinite(sd[i]):
+            ci[name] = (0.0, math.inf) if PARAMETERS[name][1] == "log" else (-math.inf, math.inf)
+            stderr[name] = math.inf
+            continue
+        ci[name] = (_from_fitted(name, theta[i] - Z95 * sd[i]), _from_fitted(name, theta[i] + Z95 * sd[i]))
+        stderr[name] = sd[i] * (estimates[name] if PARAMETERS[name][1] == "log" else 1.0)
+    return ci, stderr
 
 
 def _result(problem: _Problem, theta, best, spectrum: Spectrum, profile: bool, profile_points: int) -> FitResult:
@@ -379,17 +464,8 @@ def _result(problem: _Problem, theta, best, spectrum: Spectrum, profile: bool, p
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(sd, sd)
     estimates = problem.params(theta)
-    ci, ci_raw, stderr = {}, {}, {}
-    for i, name in enumerate(problem.free):
-        if not np.isfinite(sd[i]):
-            unbounded = (0.0, math.inf) if PARAMETERS[name][1] == "log" else (-math.inf, math.inf)
-            ci[name] = ci_raw[name] = unbounded
-            stderr[name] = math.inf
-            continue
-        ci[name] = (_from_fitted(name, theta[i] - Z95 * sd[i]), _from_fitted(name, theta[i] + Z95 * sd[i]))
-        ci_raw[name] = (_from_fitted(name, theta[i] - Z95 * sd_raw[i]),
-                        _from_fitted(name, theta[i] + Z95 * sd_raw[i]))
-        stderr[name] = sd[i] * (estimates[name] if PARAMETERS[name][1] == "log" else 1.0)
+    ci, stderr = _intervals(problem.free, theta, estimates, sd)
+    ci_raw = _intervals(problem.free, theta, estimates, np.where(np.isfinite(sd), sd_raw, math.inf))[0]
 
     positive = problem.data > 0
     ratio = problem.data[positive] / S[positive]
@@ -656,8 +732,8 @@ def _starting_values(problem: _Problem, start: dict) -> dict:
             p["H"] = float(np.clip((-slope - 3.0) / 2.0, 0.05, 0.95))
         if "a" in free:
             p["a"] = _modulation_radius(omega[upper] / v0, np.log(data[upper]), default=p["a"])
-    if "a_jitter" in free:  # the edge displacement h R / (2 a) of eq 47 at the RMS height
-        p["a_jitter"] = p["h0"] * p["R"] / (2.0 * p["a"])
+    if "a_jitter" in free:  # the edge displacement of eq 47 at the RMS height
+        p["a_jitter"] = float(edge_displacement(p["h0"], p["R"], p["a"]))
     if "noise" in free:
         p["noise"] = 0.3 * float(np.median(top))
     if "leak" in free:

@@ -98,7 +98,7 @@ def bootstrap(spectrum, result, replicates: int, device: str = "auto", seed: int
     for ensemble in run_specs(specs, device=device, runner=runner):
         refit = fit(from_result(ensemble, spectrum.quantity, spectrum.window), known=result.known, free=result.free,
                     band=result.band, passes=result.passes, bin=bin, start=start, profile=False,
-                    correction=result.correction_used or "none")
+                    correction=result.correction_used or "none", fill_check="off")
         for n in result.free:
             estimates[n].append(refit.estimates[n])
     centre = {n: result.estimates[n] for n in estimates}
@@ -161,6 +161,12 @@ def _compare(result, truth: dict, row: dict) -> dict:
         row["converged"] = result.correction["converged"]
         row["correction_ratio"] = result.correction.get("ratio")
         row["correction_skipped"] = result.correction.get("skipped")
+    if result.fill_check:
+        check = result.fill_check
+        row["fill_check"] = {"a_jitter_fitted": check["a_jitter_fitted"], "a_jitter_edge": check["a_jitter_edge"],
+                             "widening": {n: check["widening"][n] for n in row["error"]},
+                             "covered_local": {n: bool(lo <= truth[n] <= hi) for n, (lo, hi) in check["ci95_local"].items()
+                                               if n in row["error"]}}
     return row
 
 
@@ -202,7 +208,7 @@ def realistic_case(truth: Params, passes: int, seed: int, device: str, folder, n
 
 def run_study(size: str = "quick", device: str = "auto", folder=None, progress=lambda text: None, workers: int = 1,
               passes=None, lengths=None, correction: str = "simulated", repeats: int | None = None,
-              correction_passes: int | None = None) -> dict:
+              correction_passes: int | None = None, realistic_only: bool = False) -> dict:
     """Every round trip of ``SIZES[size]`` (``passes`` and ``lengths`` restrict its K and L, ``repeats``
     replaces its seeds per truth), fitted with the ``correction`` ("simulated" or "none"; its
     ensembles of ``correction_passes`` passes, default
@@ -212,7 +218,7 @@ def run_study(size: str = "quick", device: str = "auto", folder=None, progress=l
 
     Per (K, L) cell the ensembles run one after the other on ``device`` (:func:`mdroll.run_specs`),
     then their fits in ``workers`` processes (the fit is NumPy on the host). The realistic cases
-    run when the plan's (K, L) for them is among the cells."""
+    run when the plan's (K, L) for them is among the cells; ``realistic_only``: they alone."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
     from pathlib import Path
@@ -234,7 +240,7 @@ def run_study(size: str = "quick", device: str = "auto", folder=None, progress=l
     # spawned, not forked: the parent may hold a CUDA context by the time the workers start
     pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) if workers > 1 else None
     try:
-        for length in cells_l:
+        for length in () if realistic_only else cells_l:
             for k in cells_k:
                 plan_rows = [(index, change, repeat) for index, change in enumerate(plan.truths)
                              for repeat in range(plan.repeats)]
@@ -314,21 +320,37 @@ def format_table(record: dict) -> str:
             cells.append(f"{value} ({100 * e[n]['coverage']:.0f}%)")
         lines.append(f"| {e['passes']} | {e['L']:g} | {e['round_trips']} | " + " | ".join(cells) + " |")
     for row in record.get("realistic", []):
-        cells = [(_fmt_error(n, row["error"][n]) + (" in" if row["covered"][n] else " out")) if n in row["error"] else "-"
-                 for n in names]
+        cells = [_realistic_cell(row, n) if n in row["error"] else "-" for n in names]
         lines.append(f"| {row['passes']} | {row['L']:g} | realistic v0={row['v0']:g} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
+def _realistic_cell(row: dict, name: str) -> str:
+    """A realistic case's error and coverage; with the fill check, the widening of the interval
+    (where 10 % or more) and the coverage without it where that differs."""
+    text = _fmt_error(name, row["error"][name]) + (" in" if row["covered"][name] else " out")
+    check = row.get("fill_check")
+    if check:
+        if check["widening"][name] >= 1.1:
+            text += f" x{check['widening'][name]:.1f}"
+        if check["covered_local"][name] != row["covered"][name]:
+            text += " (local: " + ("in" if check["covered_local"][name] else "out") + ")"
+    return text
+
+
 def merge_records(records) -> dict:
-    """One record from the records of several parts of a study (their rows and realistic cases;
-    the summary recomputed, the seconds summed)."""
+    """One record from the records of several parts of a study (their rows and realistic cases, a
+    later realistic case replacing an earlier one of the same K, L and v0; the summary recomputed,
+    the seconds summed)."""
     records = list(records)
     if not records:
         raise ParameterError("no round-trip record to report on")
     rows = [row for r in records for row in r["rows"]]
+    realistic = {}  # a later record's realistic case replaces an earlier one's at the same K, L and v0
+    for row in (row for r in records for row in r.get("realistic", [])):
+        realistic[(row["passes"], row["L"], row["v0"])] = row
     return {"size": records[0]["size"], "rows": rows, "summary": summarize(rows),
-            "realistic": [row for r in records for row in r.get("realistic", [])], "targets": TARGETS,
+            "realistic": list(realistic.values()), "targets": TARGETS,
             "correction": records[0].get("correction", "none"), "seconds": sum(r["seconds"] for r in records)}
 
 
@@ -340,6 +362,8 @@ def report(record: dict) -> str:
     corrected."""
     rows = record["rows"]
     out = [format_table(record), ""]
+    if not rows:  # the realistic cases alone
+        return out[0]
     corrected = [r for r in rows if "error_closed_form" in r]
     if corrected:
         out += ["Closed form (the first iterate) against the corrected fit: median |error|, and the median signed "
