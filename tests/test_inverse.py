@@ -323,7 +323,7 @@ def test_fill_check_covers_h0_and_E_star_where_the_floor_and_the_jitter_trade(tm
         assert row["covered"][name] and not check["covered_local"][name], name
         assert check["widening"][name] > 2.0
     assert row["covered"]["a"] and check["widening"]["a"] < 1.05  # a does not trade with the fill
-    local = _invert_table(tmp_path / "realistic_v20.csv", 20, tmp_path / "off", "--fill-check", "off")
+    local = _invert_table(tmp_path / "realistic_v20_s7.csv", 20, tmp_path / "off", "--fill-check", "off")
     lo, hi = local["ci95"]["E_star"]
     assert local["fill_check"] is None and not lo <= truth.E_star <= hi
 
@@ -336,7 +336,7 @@ def test_fill_check_leaves_separable_fits_alone(tmp_path):
 
     truth = mdroll.Params(L=1.0, v0=10.0)
     realistic_case(truth, 100, seed=7, device="cpu", folder=tmp_path)
-    record = _invert_table(tmp_path / "realistic_v10.csv", 10, tmp_path / "inv")
+    record = _invert_table(tmp_path / "realistic_v10_s7.csv", 10, tmp_path / "inv")
     check = record["fill_check"]
     assert check["a_jitter_fitted"] == pytest.approx(check["a_jitter_edge"], rel=0.05)
     assert set(check["widening"]) == set(REALISTIC_FREE.split(","))

@@ -30,12 +30,14 @@ from .spectrum import from_result, read_table, write_table
 #: (K = 300, L = 5 m): absolute for H, relative for the others.
 TARGETS = {"H": 0.02, "a": 0.005, "q_min": 0.01, "h0": 0.03, "E_star": 0.02}
 KNOWN = ("m", "R")
+#: Seed of the first realistic case (one per repeat: 7, 8, ...).
+REALISTIC_SEED = 7
 
 
 @dataclass(frozen=True)
 class StudySize:
-    """A study: the true parameter sets, passes K, lengths L (m), repeats (seeds) per cell, the
-    realistic cases' speeds (m/s), and the (K, L) of those."""
+    """A study: the true parameter sets, passes K, lengths L (m), repeats (seeds) per cell and per
+    realistic case, the realistic cases' speeds (m/s), and the (K, L) of those."""
 
     truths: tuple
     passes: tuple
@@ -65,7 +67,7 @@ def truth_grid(full: bool) -> tuple:
 
 SIZES = {
     "quick": StudySize(truths=truth_grid(False), passes=(1, 10, 100), lengths=(0.5, 1.0), repeats=1,
-                       realistic_speeds=(10.0, 40.0), realistic_passes=100, realistic_length=1.0),
+                       realistic_speeds=(10.0, 20.0, 40.0), realistic_passes=100, realistic_length=1.0),
     "full": StudySize(truths=truth_grid(True), passes=(1, 10, 100, 300), lengths=(0.5, 1.0, 5.0), repeats=3,
                       realistic_speeds=(10.0, 20.0, 40.0), realistic_passes=300, realistic_length=5.0),
 }
@@ -194,7 +196,8 @@ def realistic_case(truth: Params, passes: int, seed: int, device: str, folder, n
     noisy = spectrum.psd[inside] + floor * rng.chisquare(2 * passes, inside.sum()) / (2 * passes)
     measured = type(spectrum)(omega=spectrum.omega[inside], psd=noisy, quantity="accel", passes=passes,
                               window=True, source="realistic")
-    path = write_table(measured, folder / f"realistic_v{truth.v0:g}.csv", frequency_unit="Hz", sided="one", density="Hz")
+    path = write_table(measured, folder / f"realistic_v{truth.v0:g}_s{seed}.csv", frequency_unit="Hz", sided="one",
+                       density="Hz")
     table = read_table(path, quantity="accel", frequency_unit="Hz", sided="one", density="Hz", passes=passes, window=True)
     if correction == "simulated":  # a measurement's rolling distance and the model's dx and nu are known
         table = dataclasses.replace(table, simulation=spectrum.simulation)
@@ -274,9 +277,11 @@ def run_study(size: str = "quick", device: str = "auto", folder=None, progress=l
     if plan.realistic_length in cells_l and plan.realistic_passes in cells_k:
         for v0 in plan.realistic_speeds:
             truth = Params(L=plan.realistic_length, v0=v0)
-            row = realistic_case(truth, plan.realistic_passes, seed=7, device=device, folder=folder)
-            realistic.append(row)
-            progress(f"realistic v0={v0}: " + " ".join(f"{n} {_fmt_error(n, e)}" for n, e in row["error"].items()))
+            for seed in range(REALISTIC_SEED, REALISTIC_SEED + plan.repeats):
+                row = realistic_case(truth, plan.realistic_passes, seed=seed, device=device, folder=folder)
+                realistic.append(row)
+                progress(f"realistic v0={v0} seed {seed}: "
+                         + " ".join(f"{n} {_fmt_error(n, e)}" for n, e in row["error"].items()))
     return {"size": size, "rows": rows, "summary": summarize(rows), "realistic": realistic, "targets": TARGETS,
             "known": list(KNOWN) + ["v0"], "workers": workers, "correction": correction,
             "seconds": time.perf_counter() - started}
@@ -321,7 +326,8 @@ def format_table(record: dict) -> str:
         lines.append(f"| {e['passes']} | {e['L']:g} | {e['round_trips']} | " + " | ".join(cells) + " |")
     for row in record.get("realistic", []):
         cells = [_realistic_cell(row, n) if n in row["error"] else "-" for n in names]
-        lines.append(f"| {row['passes']} | {row['L']:g} | realistic v0={row['v0']:g} | " + " | ".join(cells) + " |")
+        lines.append(f"| {row['passes']} | {row['L']:g} | realistic v0={row['v0']:g} seed {row['seed']} | "
+                     + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
@@ -340,15 +346,15 @@ def _realistic_cell(row: dict, name: str) -> str:
 
 def merge_records(records) -> dict:
     """One record from the records of several parts of a study (their rows and realistic cases, a
-    later realistic case replacing an earlier one of the same K, L and v0; the summary recomputed,
+    later realistic case replacing an earlier one of the same K, L, v0 and seed; the summary recomputed,
     the seconds summed)."""
     records = list(records)
     if not records:
         raise ParameterError("no round-trip record to report on")
     rows = [row for r in records for row in r["rows"]]
-    realistic = {}  # a later record's realistic case replaces an earlier one's at the same K, L and v0
+    realistic = {}  # a later record's realistic case replaces an earlier one's at the same K, L, v0 and seed
     for row in (row for r in records for row in r.get("realistic", [])):
-        realistic[(row["passes"], row["L"], row["v0"])] = row
+        realistic[(row["passes"], row["L"], row["v0"], row["seed"])] = row
     return {"size": records[0]["size"], "rows": rows, "summary": summarize(rows),
             "realistic": list(realistic.values()), "targets": TARGETS,
             "correction": records[0].get("correction", "none"), "seconds": sum(r["seconds"] for r in records)}
