@@ -341,3 +341,26 @@ def test_fill_check_leaves_separable_fits_alone(tmp_path):
     assert check["a_jitter_fitted"] == pytest.approx(check["a_jitter_edge"], rel=0.05)
     assert set(check["widening"]) == set(REALISTIC_FREE.split(","))
     assert all(1.0 <= w < 1.3 for w in check["widening"].values()), check["widening"]
+
+
+def test_fill_check_holds_the_simulated_correction_and_adds_the_shift():
+    """On an mdroll spectrum with the noise floor free, the check refits with the simulated
+    correction held (its gain dropped: one per free parameter of the original fit) and widens by
+    the shift in the fitted scale: sd^2 = sd_local^2 + d^2 (log scale for E*, linear for H), a_jitter's
+    d from its fitted value to eq 47's."""
+    p = mdroll.Params(L=0.3, n_real=8)
+    spectrum = from_result(mdroll.EnsembleSpec(p, seed=9, realizations=8, window=True).run(device="cpu"), window=True)
+    r = fit(spectrum, known={"m": 500, "R": 0.5}, free=["H", "q_min", "a", "h0", "E_star", "a_jitter", "noise"],
+            profile=False, device="cpu", correction_passes=32)
+    check = r.fill_check
+    assert r.correction_used is not None and check["rule"] == "auto"
+    shift = check["shift_fitted_scale"]
+    assert shift["a_jitter"] == pytest.approx(math.log(check["a_jitter_edge"] / check["a_jitter_fitted"]), rel=1e-12)
+    held = check["estimates_held"]
+    assert held["a_jitter"] == pytest.approx(physics.edge_displacement(held["h0"], 0.5, held["a"]), rel=1e-3)
+    local_E = check["stderr_local"]["E_star"] / r.estimates["E_star"]
+    assert (r.stderr["E_star"] / r.estimates["E_star"]) ** 2 == pytest.approx(local_E**2 + shift["E_star"] ** 2, rel=1e-9)
+    assert r.stderr["H"] ** 2 == pytest.approx(check["stderr_local"]["H"] ** 2 + shift["H"] ** 2, rel=1e-9)
+    lo, hi = r.ci95["H"]
+    assert hi - lo == pytest.approx(2 * 1.959964 * r.stderr["H"], rel=1e-6)
+    assert "fill check: a_jitter" in r.table()

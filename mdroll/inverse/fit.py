@@ -389,6 +389,9 @@ def _fill_check(spectrum: Spectrum, result: FitResult, bin: int, mode: str) -> F
     if not applies or not free:
         return result
     tied, jitter = result, None
+    # held: the correction's r, without its gain (one per free parameter of the original fit; the
+    # held fits give estimates only)
+    held = dataclasses.replace(result.correction_used, gain=()) if result.correction_used else "none"
     for _ in range(FILL_CHECK_ITERATIONS):
         p = tied.estimates
         previous, jitter = jitter, float(edge_displacement(p["h0"], p["R"], p["a"]))
@@ -397,7 +400,7 @@ def _fill_check(spectrum: Spectrum, result: FitResult, bin: int, mode: str) -> F
         tied = fit(spectrum, known={**result.known, "a_jitter": jitter}, free=free, band=result.band,
                    passes=None if result.passes_assumed else result.passes, bin=bin,
                    start={n: p[n] for n in free}, profile=False,
-                   correction=result.correction_used or "none", fill_check="off")
+                   correction=held, fill_check="off")
     values = {**{n: tied.estimates[n] for n in free}, "a_jitter": jitter}
     shift = np.array([_to_fitted(n, values[n]) - _to_fitted(n, result.estimates[n]) for n in result.free])
     problem = _Problem(spectrum, result.known, result.free, result.band,
