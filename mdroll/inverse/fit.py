@@ -31,6 +31,11 @@ difference divided by phi tau; a profile that stays below 3.84 on a side is an o
 
 Goodness of fit: the Gamma deviance ``D = 2 kappa sum (P/S - log(P/S) - 1)`` against chi^2 with
 n - p degrees of freedom, phi and tau, and a Kolmogorov-Smirnov test of P/S against the Gamma law.
+
+Fill check (:func:`_fill_check`): where the noise floor and the contact-radius jitter are both
+free they trade, and h0 and E* follow them beyond what the local intervals say; the fit is
+repeated with a_jitter held at eq 47's edge displacement and the shift d widens the covariance,
+``cov + d d^T``.
 """
 
 from __future__ import annotations
