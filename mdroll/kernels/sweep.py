@@ -378,6 +378,90 @@ def sweep_kernel(tile_steps: int, block_dim: int, loads: int = 1):
     return contact_force_sweep
 
 
+@wp.func
+def band_terms(row: wp.array(dtype=wp.float64), c: int, first_m: int, last_m: int, side: int, d: wp.float64,
+               curvature: wp.float64) -> wp.float64:
+    """``sum max(h_l + d - curvature m^2, 0)`` (m) over the springs ``l = c + side m``,
+    ``m = first_m .. last_m`` (eq 10-12), with the direct sum's contact test: a spring adds
+    itself iff ``fl(h + d) > fl(fl(curvature m) m)``."""
+    total = wp.float64(0.0)
+    for m in range(first_m, last_m + 1):
+        level = row[c + side * m] + d
+        lift = curvature * wp.float64(m) * wp.float64(m)
+        if level > lift:
+            total += level - lift
+    return total
+
+
+@functools.cache
+def sweep_gather_kernel(block_dim: int, steps_per_lane: int = 1):
+    """The sweep's gather form: tiles of ``block_dim * steps_per_lane`` steps, a block each
+    (``block_dim`` a power of two; 1 on the CPU). Launched by ``wp.launch_tiled`` over
+    ``(R, ceil(steps / tile))``; exact at any band, its work a step proportional to the band's
+    local width (module docstring)."""
+    if block_dim < 1 or block_dim & (block_dim - 1) or steps_per_lane < 1:
+        raise ValueError(f"block_dim = {block_dim} must be a power of two and steps_per_lane = {steps_per_lane} >= 1")
+    BD = block_dim
+    S = steps_per_lane
+    T = BD * S
+
+    @wp.kernel(module="unique", enable_backward=False)
+    def contact_force_gather(
+        lines: wp.array2d(dtype=wp.float64),
+        prefix: wp.array2d(dtype=wp.float64),
+        bounds: wp.array(dtype=wp.vec2d),
+        n: int,
+        first: int,
+        steps: int,
+        d: wp.float64,
+        curvature: wp.float64,
+        k_spring: wp.float64,
+        offset: wp.float64,
+        force: wp.array2d(dtype=wp.float64),
+    ):
+        """``force[r, s] = F - offset`` (N): F (eq 10-12) with the wheel at spring ``first + s``
+        of row r, indentation d (m), for the steps s of this block's tile."""
+        r, tile, lane = wp.tid()
+        s0 = tile * T
+        c0 = first + s0
+        last = first + wp.min(s0 + T, steps) - 1  # the tile's last wheel position
+        box = bounds[r]
+        core = reach_strict(d + box[0], curvature)  # every spring reaches this far (-1: none surely)
+        outer = reach_strict(d + box[1], curvature)  # no spring reaches farther
+        near = wp.max(core, 0)
+        row = lines[r]
+
+        # the heights the tile's bands reach: right c0+core+1 .. last+outer, left c0-outer .. last-near-1
+        # (kept as (-min, max) pairs, so that one block maximum gives all four; they start from the
+        # row's extremes reversed, which an empty side, a row of equal heights, leaves as they are)
+        extremes = wp.vec4d(-box[1], box[0], -box[1], box[0])
+        for j in range(lane, last - c0 + outer - core, BD):
+            h = row[c0 + core + 1 + j]
+            extremes = wp.vec4d(wp.max(extremes[0], -h), wp.max(extremes[1], h), extremes[2], extremes[3])
+        for j in range(lane, last - c0 + outer - near, BD):
+            h = row[c0 - outer + j]
+            extremes = wp.vec4d(extremes[0], extremes[1], wp.max(extremes[2], -h), wp.max(extremes[3], h))
+        local = wp.tile_reduce(wp.max, wp.tile(extremes, preserve_type=True))[0]
+        # per side: certain up to reach(d + min h), possible up to reach(d + max h), over this tile
+        right_core = wp.max(reach_strict(d - local[0], curvature), core)
+        right_outer = reach_strict(d + local[1], curvature)
+        left_core = wp.max(reach_strict(d - local[2], curvature), near)
+        left_outer = reach_strict(d + local[3], curvature)
+        # the certain springs, offsets -left_core .. right_core: a closed form but for their sum of h
+        certain = wp.float64(right_core + left_core + 1) * d - curvature * sum_of_squares(-left_core, right_core)
+
+        for k in range(S):
+            s = s0 + k * BD + lane
+            if s < steps:
+                c = first + s
+                total = (prefix[r, c + right_core + 1] - prefix[r, c - left_core]) + certain
+                total += band_terms(row, c, right_core + 1, right_outer, 1, d, curvature)
+                total += band_terms(row, c, left_core + 1, left_outer, -1, d, curvature)
+                force[r, s] = k_spring * total - offset
+
+    return contact_force_gather
+
+
 #: An event's count change sits above bit 40 of its packed int64, its offsets' change below: the
 #: latter is never negative (an entry adds its reach M >= 0, an exit removes offset -M - 1), and a
 #: slot's sum stays below 2^40 for any supported band and reach, so the two never mix.
