@@ -7,7 +7,7 @@ from reference import contact_reach, direct_force, sweep_force, to_numpy
 from mdroll import Params, contact_force, rough_lines, step_range
 from mdroll.devices import to_warp
 from mdroll.ensemble.prepare import prepare_lines
-from mdroll.ensemble.sweep import FORMS, sweep_command
+from mdroll.ensemble.sweep import FORMS, sweep_command, sweep_tile
 
 SMALL = Params(L=0.03, dx=20e-6)  # 1500 springs, a/dx = 253
 
@@ -121,7 +121,7 @@ def test_same_force_whatever_the_form_the_tile_the_block_the_chunk_or_the_batch(
     direct = to_numpy(contact_force(lines, p, "direct", "open", d=d, device=device))
     assert np.max(np.abs(reference - direct)) <= 1e-12 * p.F_N
     # (tile steps, lanes, loads a lane)
-    variants = [(16, 1, 1), (64, 8, 2)] if device == "cpu" else [(256, 64, 1), (512, 256, 4), (2048, 128, 2)]
+    variants = [(16, 1, 1), (64, 8, 2)] if device == "cpu" else [(256, 64, 1), (512, 256, 4), (2048, 128, 2), (4096, 256, 2)]
     enabled = wp.config.enable_cpu_blocks
     wp.config.enable_cpu_blocks = True
     try:
@@ -140,6 +140,17 @@ def test_same_force_whatever_the_form_the_tile_the_block_the_chunk_or_the_batch(
     # one by one, with the batch's wheel positions (h_max): each line's own bounds and scale
     alone = np.concatenate([_sweep(lines[r:r + 1], p, "open", d, device, h_max=lines.max()) for r in range(3)])
     assert np.max(np.abs(alone - reference)) <= 1e-12 * p.F_N
+
+
+def test_default_tiles_grow_with_the_band_and_their_blocks_with_the_tile():
+    """Tiles of at least 4 bands (512 steps at least on CUDA, 4096 at most); on CUDA 128 lanes,
+    or 256 for the 4096-step tiles that leave one block a multiprocessor; one lane on the CPU."""
+    assert sweep_tile(44, "cuda:0") == (512, 128)  # thesis scale
+    assert sweep_tile(447, "cuda:0") == (2048, 128)
+    assert sweep_tile(895, "cuda:0") == (4096, 256)
+    assert sweep_tile(3582, "cuda") == (4096, 256)
+    assert sweep_tile(44, "cpu") == (4096, 1)
+    assert sweep_tile(44, "cuda:0", tile_steps=1024) == (1024, 128)
 
 
 def test_sweep_runs_decoupled_ensembles_and_refuses_the_coupled_mode():

@@ -18,8 +18,12 @@ from ..params import ParameterError, Params
 #: CUDA: lanes a block, the smallest tile (steps a block) and the springs a lane loads at once
 #: (kernels/sweep.py). A lane scans ``tile / lanes`` consecutive bins; a tile takes 44 bytes of
 #: shared memory a step (its bins and forces), ~36 KiB at 512 steps: 6 blocks of 128 lanes a
-#: streaming multiprocessor.
+#: streaming multiprocessor. A tile of 4096 steps (184 KiB) leaves one block a multiprocessor,
+#: so there the block takes ``tile / CUDA_BINS_PER_LANE`` lanes: 256, which took 3.50 ms
+#: against 128's 5.66 ms at 64 x 2^20 springs, L = 0.25 m, on an H200; 2048 steps keep 128
+#: lanes (1.57 ms against 256's 1.97 at 64 x 2^19) (docs/performance.md).
 CUDA_BLOCK_DIM = 128
+CUDA_BINS_PER_LANE = 16
 CUDA_MIN_TILE = 512
 CUDA_LOADS = 2
 #: CPU: Warp runs a block as one lane; a longer tile reads the anchors' bands less often.
@@ -55,13 +59,14 @@ def reach_strict(level: float, curvature: float) -> int:
 
 def sweep_tile(band: int, device: str, tile_steps: int | None = None, block_dim: int | None = None) -> tuple[int, int]:
     """``(tile_steps, block_dim)`` for a widest band of ``band`` springs: by default the smallest
-    power of two >= max(minimum tile, TILE_PER_BAND x band), capped at MAX_TILE."""
+    power of two >= max(minimum tile, TILE_PER_BAND x band), capped at MAX_TILE, and on CUDA
+    ``max(CUDA_BLOCK_DIM, tile_steps / CUDA_BINS_PER_LANE)`` lanes (1 on the CPU)."""
     cuda = is_cuda(device)
-    if block_dim is None:
-        block_dim = CUDA_BLOCK_DIM if cuda else 1
     if tile_steps is None:
-        wanted = max(CUDA_MIN_TILE if cuda else CPU_MIN_TILE, TILE_PER_BAND * band, block_dim)
+        wanted = max(CUDA_MIN_TILE if cuda else CPU_MIN_TILE, TILE_PER_BAND * band, block_dim or 1)
         tile_steps = min(1 << (wanted - 1).bit_length(), MAX_TILE["cuda" if cuda else "cpu"])
+    if block_dim is None:
+        block_dim = max(CUDA_BLOCK_DIM, tile_steps // CUDA_BINS_PER_LANE) if cuda else 1
     return tile_steps, block_dim
 
 

@@ -1,0 +1,48 @@
+"""The sweep's scaling on one device in its default form: force-only time against n under
+refinement (fixed L) and under rolling distance (fixed dx), with the exponents of
+``time ~ n^p`` fitted as ``mdroll bench --full`` does, at the sizes of its sections for that
+device (``mdroll.bench.study.STUDIES``; periodic lines, as there), for the sweep alone: about a
+minute.
+
+    python benchmarks/sweep_exponents.py --device cpu --out cpu_sweep_exponents.json
+    python benchmarks/sweep_exponents.py --device cuda --out cuda_sweep_exponents.json
+
+``--realizations N`` replaces the study's lines a size (the CPU's study uses 1).
+"""
+
+import argparse
+import json
+
+import numpy as np
+
+from mdroll import Params
+from mdroll.bench.study import STUDIES, fit_exponent, force_time
+from mdroll.devices import resolve_device
+from mdroll.provenance import environment
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--device", default="cpu")
+    parser.add_argument("--out", default="sweep_exponents.json")
+    parser.add_argument("--repeats", type=int, default=STUDIES["full"].repeats)
+    parser.add_argument("--realizations", type=int, default=None)
+    args = parser.parse_args()
+    device = resolve_device(args.device)
+    study = STUDIES["full"]
+    record = {"environment": environment(device), "algorithm": "sweep", "sections": {}}
+    for section, (sizes, realizations) in study.sweeps(device).items():
+        if device.startswith("cuda"):
+            realizations = study.cuda_realizations.get(section, {}).get("sweep", realizations)
+        realizations = args.realizations or realizations
+        points = [force_time(p, "sweep", realizations, device, args.repeats) for p in sizes]
+        p, err = fit_exponent(np.array([q["n"] for q in points]), np.array([q["force_s"] for q in points]))
+        record["sections"][section] = {"points": points, "exponent": p, "exponent_stderr": err}
+        print(f"{section:10s} p = {p:.3f} +- {err:.3f}  ("
+              + ", ".join(f"{q['n']}: {q['ns_per_step']:.3f} ns/step" for q in points) + ")", flush=True)
+    with open(args.out, "w") as f:
+        json.dump(record, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
