@@ -32,6 +32,11 @@ CPU_MIN_TILE = 4096
 #: chunk reads the anchor's 2 band springs once, and its ring holds band + 1 slots).
 SEQUENTIAL_CHUNK = 1 << 15
 SEQUENTIAL_CHUNK_PER_BAND = 16
+#: The ring's fewest slots. It needs band + 1, but a narrow ring revisits a slot every few steps,
+#: and each step's read of its slot then waits on the read-modify-writes just recorded there: at
+#: band 6 (2^13 springs on 0.25 m) one CPU core took 28.3 ns a step with 7 slots and 25.0 with 64,
+#: as at the wide bands of finer lines (24-25 ns).
+RING_MIN_SLOTS = 64
 #: The sweep's forms and the one each kind of device runs by default.
 FORMS = ("tiles", "sequential")
 DEFAULT_FORM = {"cuda": "tiles", "cpu": "sequential"}
@@ -111,8 +116,9 @@ def sweep_command(prepared, params: Params, d: float, device: str, out=None, off
         chunk = chunk or max(SEQUENTIAL_CHUNK, 1 << (SEQUENTIAL_CHUNK_PER_BAND * band - 1).bit_length())
         chunks = -(-p.steps // chunk)
         # a thread's ring: one slot a step for the band's steps ahead, and the current step's
-        ring_packed = wp.empty((rows, chunks, band + 1), dtype=wp.int64, device=device)
-        ring_value = wp.empty((rows, chunks, band + 1), dtype=wp.float64, device=device)
+        slots = max(band + 1, RING_MIN_SLOTS)
+        ring_packed = wp.empty((rows, chunks, slots), dtype=wp.int64, device=device)
+        ring_value = wp.empty((rows, chunks, slots), dtype=wp.float64, device=device)
         inputs = [p.lines, p.prefix, p.bounds, p.n_work, p.first, p.steps, chunk, d, curvature, params.k_spring,
                   offset, ring_packed, ring_value, force]
         command = wp.launch(contact_force_sequential, dim=(rows, chunks), inputs=inputs, device=device,
