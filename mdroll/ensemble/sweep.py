@@ -29,7 +29,7 @@ CUDA_LOADS = 2
 #: CPU: Warp runs a block as one lane; a longer tile reads the anchors' bands less often.
 CPU_MIN_TILE = 4096
 #: The sequential form: steps a thread, at least SEQUENTIAL_CHUNK_PER_BAND times the band (a
-#: chunk reads the anchor's 2 band springs once, and its ring holds band + 1 slots).
+#: chunk reads the anchor's 2 band springs once, and its ring holds at least band + 1 slots).
 SEQUENTIAL_CHUNK = 1 << 15
 SEQUENTIAL_CHUNK_PER_BAND = 16
 #: The ring's fewest slots. It needs band + 1, but a narrow ring revisits a slot every few steps,
