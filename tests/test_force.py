@@ -336,7 +336,7 @@ def test_coupled_kernels_and_kernel_structs_are_float64():
 
     import warp as wp
 
-    from mdroll.kernels import common, direct, edge, tree
+    from mdroll.kernels import common, direct, edge, sweep, tree
 
     def low_precision(kind) -> bool:
         scalar = getattr(kind, "dtype", kind)
@@ -345,11 +345,11 @@ def test_coupled_kernels_and_kernel_structs_are_float64():
     def bad_fields(struct) -> list[str]:
         return [name for name, var in struct.vars.items() if low_precision(var.type)]
 
-    for kernel in (direct.coupled_direct, edge.coupled_edge, tree.coupled_tree):
+    for kernel in (direct.coupled_direct, edge.coupled_edge, tree.coupled_tree, sweep.coupled_sweep):
         for name, parameter in inspect.signature(kernel.func).parameters.items():
             kind = parameter.annotation
             assert not (bad_fields(kind) if hasattr(kind, "vars") else low_precision(kind)), name
-    for struct in (common.Contact, direct.DirectLines, edge.EdgeGeometry, tree.TreeLines):
+    for struct in (common.Contact, direct.DirectLines, edge.EdgeGeometry, tree.TreeLines, sweep.SweepLines):
         assert bad_fields(struct) == [], struct.key
 
     @wp.struct

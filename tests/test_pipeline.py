@@ -130,7 +130,7 @@ def _coupled_indentation(accel, params, d_start):
     return d
 
 
-@pytest.mark.parametrize("algorithm", ["direct", "tree", "edge"])
+@pytest.mark.parametrize("algorithm", ["direct", "tree", "edge", "sweep"])
 def test_coupled_force_is_the_force_at_the_current_indentation(device, algorithm):
     """Eq 13 step by step: every recorded F equals the numpy spring sum (eq 10-12; eq 49 for
     edge) at the wheel's position and at the indentation the recorded d'' implies. On CUDA the
@@ -332,7 +332,7 @@ def test_an_algorithm_is_added_by_one_registry_entry(monkeypatch):
     copy = run_ensemble(p, seed=1, algorithm="direct-copy", device="cpu", progress=False)
     direct = run_ensemble(p, seed=1, algorithm="direct", device="cpu", progress=False)
     np.testing.assert_array_equal(copy.force_psd, direct.force_psd)
-    with pytest.raises(ParameterError, match="'direct-copy' has no coupled step: mode = 'coupled' takes one of tree, direct, edge"):
+    with pytest.raises(ParameterError, match="'direct-copy' has no coupled step: mode = 'coupled' takes one of tree, direct, edge, sweep"):
         run_ensemble(p, algorithm="direct-copy", mode="coupled", progress=False)
 
 

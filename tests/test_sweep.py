@@ -153,18 +153,18 @@ def test_default_tiles_grow_with_the_band_and_their_blocks_with_the_tile():
     assert sweep_tile(44, "cuda:0", tile_steps=1024) == (1024, 128)
 
 
-def test_sweep_runs_decoupled_ensembles_and_refuses_the_coupled_mode():
-    """run_ensemble with the sweep gives the tree's spectra (both exact: equal to rounding); the
-    coupled mode, whose indentation changes every step, refuses it naming the algorithm and mode."""
-    from mdroll import ParameterError, run_ensemble
+def test_sweep_runs_decoupled_and_coupled_ensembles_as_the_tree():
+    """run_ensemble with the sweep gives the tree's spectra in both modes (all exact: equal to
+    rounding); the coupled mode runs the sweep's own step (core in closed form, bands summed)."""
+    from mdroll import run_ensemble
 
-    p = Params(L=0.03, n_real=3)
-    sweep = run_ensemble(p, seed=2, algorithm="sweep", device="cpu", progress=False)
-    tree = run_ensemble(p, seed=2, algorithm="tree", device="cpu", progress=False)
-    np.testing.assert_allclose(sweep.force_psd, tree.force_psd, rtol=1e-9, atol=1e-12 * tree.force_psd.max())
-    np.testing.assert_allclose(sweep.accel_psd, tree.accel_psd, rtol=1e-9, atol=1e-12 * tree.accel_psd.max())
-    with pytest.raises(ParameterError, match="'sweep' has no coupled step: mode = 'coupled'"):
-        run_ensemble(p, algorithm="sweep", mode="coupled", progress=False)
+    for mode in ("decoupled", "coupled"):
+        p = Params(L=0.03, n_real=3)
+        sweep = run_ensemble(p, seed=2, algorithm="sweep", mode=mode, device="cpu", progress=False)
+        tree = run_ensemble(p, seed=2, algorithm="tree", mode=mode, device="cpu", progress=False)
+        assert sweep.mode == mode
+        np.testing.assert_allclose(sweep.force_psd, tree.force_psd, rtol=1e-9, atol=1e-12 * tree.force_psd.max())
+        np.testing.assert_allclose(sweep.accel_psd, tree.accel_psd, rtol=1e-9, atol=1e-12 * tree.accel_psd.max())
 
 
 def test_band_beyond_the_tiles_int32_sums_runs_sequentially(device):

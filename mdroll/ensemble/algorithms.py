@@ -50,7 +50,7 @@ from ..kernels.tree import TreeLines, contact_force_tree, coupled_tree
 from .. import physics
 from ..devices import warp
 from ..params import ParameterError, Params
-from .sweep import sweep_launch
+from .sweep import sweep_coupled, sweep_launch
 
 #: Prepared data an algorithm may need (the values of :attr:`Algorithm.needs`).
 BOUNDS = "row bounds"  # (min h, max h) of each row, and the largest height of the batch
@@ -249,12 +249,13 @@ REGISTRY: dict[str, Algorithm] = {
         Algorithm(
             name="sweep",
             description="exact in O(n) at fixed d: running totals over the springs in contact, equal to direct to "
-                        "rounding (decoupled mode only)",
+                        "rounding (coupled: the core in closed form and the bands spring by spring)",
             exact=True,
             needs=frozenset({BOUNDS, PREFIX}),
             force_launch=sweep_launch,
-            # d varies every step of the coupled dynamics: no fixed-d sweep there (refused, no fallback)
-            coupled=None,
+            # d varies every step of the coupled dynamics, so no totals carry over there: its
+            # step sums the bands directly (O(band) a step; docs/performance.md has the measurement)
+            coupled=sweep_coupled,
             max_window=MAX_CLOSED_FORM_OFFSET,  # the tile's core closed form, sum of m^2
             complexity=Complexity(refinement=1.0, text="O(n) a line"),
             bench_point_limit={"cpu": 2**23},

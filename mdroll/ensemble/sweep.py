@@ -138,3 +138,14 @@ def sweep_launch(prepared, params: Params, d: float, offset: float, force, lifts
     recorded launch of :func:`sweep_command` in its device's default form and layout, writing
     ``force``."""
     return sweep_command(prepared, params, d, device, out=force, offset=offset)[0]
+
+
+def sweep_coupled(prepared):
+    """The registry's ``coupled`` of the sweep (:mod:`mdroll.ensemble.algorithms`): the eq 13
+    kernel :data:`~mdroll.kernels.sweep.coupled_sweep` and its
+    :class:`~mdroll.kernels.sweep.SweepLines` from prepared lines."""
+    from ..kernels.sweep import SweepLines, coupled_sweep
+
+    lines = SweepLines()
+    lines.h, lines.prefix, lines.bounds, lines.n = prepared.lines, prepared.prefix, prepared.bounds, prepared.n_work
+    return coupled_sweep, lines
