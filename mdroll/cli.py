@@ -191,6 +191,9 @@ def _parser() -> argparse.ArgumentParser:
     p_inv.add_argument("--fill-check", choices=["auto", "on", "off"], default="auto", help="refit with a_jitter held "
                        "at eq 47's h0 R / (2 a) and widen the intervals by the shift (auto, the default: where the noise "
                        "floor and a_jitter are both free, as they trade; on: wherever a_jitter is free)")
+    p_inv.add_argument("--discrepancy", metavar="LEVEL,TILT", help="the closed form's unknown discrepancy: log r = 0 "
+                       "+- LEVEL +- TILT per octave in the intervals (default 0.03,0.02 for a table fitted without "
+                       "the correction, none otherwise; 0: none)")
     p_inv.add_argument("--realistic-only", action="store_true", help="round trip: only the realistic cases (a "
                        "one-sided per-Hz table over 20 Hz - 20 kHz with a noise floor)")
     output(p_inv)
@@ -658,6 +661,17 @@ def _numbers(text, kind, option):
     return values
 
 
+def _discrepancy(text):
+    """``--discrepancy``: ``LEVEL,TILT`` or ``0`` (fit checks the values; None for the default)."""
+    if text is None:
+        return None
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise UsageError(f"--discrepancy {text!r}: expected LEVEL,TILT (e.g. 0.03,0.02) or 0") from None
+    return 0 if values == [0.0] else tuple(values)
+
+
 def _known(items) -> dict:
     known = {}
     for item in items or []:
@@ -727,7 +741,8 @@ def cmd_invert(args) -> int:
     free = [n.strip() for n in args.free.split(",") if n.strip()] if args.free else None
     result = fit(spectrum, known=_known(args.known), free=free, band=_band(args.band) if args.band else None,
                  passes=args.passes, bin=args.bin, profile=not args.no_profile, correction=args.correction,
-                 correction_passes=args.correction_passes, device=resolve_device(args.device), fill_check=args.fill_check)
+                 correction_passes=args.correction_passes, device=resolve_device(args.device), fill_check=args.fill_check,
+                 discrepancy=_discrepancy(args.discrepancy))
     if args.bootstrap:
         from .inverse.roundtrip import bootstrap
 

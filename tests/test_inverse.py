@@ -71,7 +71,8 @@ def test_bad_units_and_declarations(tmp_path):
 
 
 def _synthetic(n=400, passes=50, seed=0, **changes):
-    """A force periodogram of the model itself: each bin its mean times chi^2_{2K} / 2K."""
+    """A force periodogram of the model itself: each bin its mean times chi^2_{2K} / 2K (a table to
+    the fit: the default discrepancy applies)."""
     truth = {"H": 0.7, "q_min": 1256.6, "q_max": math.inf, "a": 5e-3, "E_star": 1.154e11, "h0": 5e-7, "R": 0.5, "m": 1.0,
              "zeta": 0.0, "noise": 0.0, "leak": 0.0, "a_jitter": 0.0, "low_scale": 1.0, **changes}
     omega = 10.0 * 80.0 * np.arange(1, n + 1)  # q from 80 to 32000 rad/m at v0 = 10
@@ -109,7 +110,8 @@ def test_whittle_intervals_cover_on_chi_square_periodograms():
     for seed in range(10):
         s, truth = _synthetic(seed=seed)
         r = fit(s, known={"E_star": truth["E_star"], "R": 0.5, "a_jitter": 0.0, "q_min": truth["q_min"]},
-                free=["H", "a", "h0"], start={"H": 0.68, "a": 5.0e-3, "h0": 4.5e-7}, profile=False)
+                free=["H", "a", "h0"], start={"H": 0.68, "a": 5.0e-3, "h0": 4.5e-7}, profile=False,
+                discrepancy=0)  # data of the model itself: the statistical intervals alone
         for name in ("H", "a", "h0"):
             lo, hi = r.ci95[name]
             covered.append(lo <= truth[name] <= hi)
@@ -175,7 +177,8 @@ def test_profiles_bracket_the_estimate_and_expose_a_degeneracy():
     q_min: its profile stays flat, and the Fisher information names it unidentified."""
     s, truth = _synthetic(seed=3)
     r = fit(s, known={"E_star": truth["E_star"], "R": 0.5, "a_jitter": 0.0, "q_min": truth["q_min"]},
-            free=["H", "a", "h0"], start={"H": 0.68, "a": 5.0e-3, "h0": 4.5e-7}, profile_points=7)
+            free=["H", "a", "h0"], start={"H": 0.68, "a": 5.0e-3, "h0": 4.5e-7}, profile_points=7,
+            discrepancy=0)  # the profile against the statistical interval: no model discrepancy
     prof = r.profiles["H"]
     assert min(prof["delta"]) == pytest.approx(0.0, abs=0.05)
     lo, hi = prof["ci95"]
@@ -364,3 +367,54 @@ def test_fill_check_holds_the_simulated_correction_and_adds_the_shift():
     lo, hi = r.ci95["H"]
     assert hi - lo == pytest.approx(2 * 1.959964 * r.stderr["H"], rel=1e-6)
     assert "fill check: a_jitter" in r.table()
+
+
+# ------------------------------------------------------------------------------------------ model discrepancy
+def test_discrepancy_covers_the_closed_forms_bias_of_H_on_a_table(tmp_path):
+    """The realistic table at v0 = 10 m/s (K = 100, L = 1 m, seed 9; closed form, the floor free):
+    H comes out -0.0097, the closed form's own bias (the contact's non-linear part), outside its
+    statistical interval. The default discrepancy of a table (log r = 0 +- 0.03 +- 0.02 per octave)
+    covers it; q_min and a, which a smooth r does not move, keep their intervals. Its variance is
+    G Sigma G^T: for the tilt, the shift of the estimate when the table is refitted with a fixed r
+    of tilt eps per octave, over eps, squared, times 0.02^2."""
+    from mdroll.inverse.model import Correction
+    from mdroll.inverse.roundtrip import realistic_case
+
+    truth = mdroll.Params(L=1.0, v0=10.0)
+    row = realistic_case(truth, 100, seed=9, device="cpu", folder=tmp_path)
+    d = row["discrepancy"]
+    assert -0.012 < row["error"]["H"] < -0.007
+    assert row["covered"]["H"] and not d["covered_without"]["H"]
+    assert 2.0 < d["widening"]["H"] < 5.0
+    assert d["widening"]["q_min"] < 1.05 and d["widening"]["a"] < 1.05
+    table = read_table(tmp_path / "realistic_v10_s9.csv", quantity="accel", frequency_unit="Hz", sided="one",
+                       density="Hz", passes=100, window=True)
+    known = {"m": 500, "R": 0.5, "v0": 10}
+    free = REALISTIC_FREE.split(",")
+    r = fit(table, known=known, free=free, profile=False, fill_check="off", discrepancy=(0.0, 0.02))
+    plain = fit(table, known=known, free=free, profile=False, fill_check="off", discrepancy=0)
+    assert plain.discrepancy is None and r.estimates["H"] == pytest.approx(plain.estimates["H"], abs=1e-9)
+    knots = np.asarray(r.discrepancy["q_knots"])
+    octaves = np.log2(knots) - np.mean(np.log2(knots))
+    eps = 1e-3
+    tilted = fit(table, known=known, free=free, profile=False, fill_check="off", start={n: plain.estimates[n] for n in free},
+                 correction=Correction(tuple(np.log(knots)), tuple(eps * octaves)))
+    slope = (tilted.estimates["H"] - plain.estimates["H"]) / eps
+    assert r.discrepancy["variance_fitted_scale"]["H"] == pytest.approx((0.02 * slope) ** 2, rel=0.1)
+    assert r.stderr["H"] ** 2 == pytest.approx(plain.stderr["H"] ** 2 + (0.02 * slope) ** 2, rel=0.1)
+
+
+def test_discrepancy_default_rule_and_bad_values():
+    """The default applies to the closed form of a spectrum without simulation settings only;
+    an explicit one needs correction='none'; bad values end in one ParameterError."""
+    s, truth = _synthetic()
+    known = {"E_star": truth["E_star"], "R": 0.5}
+    assert fit(s, known=known, profile=False).discrepancy["level"] == 0.03
+    assert fit(s, known=known, profile=False, discrepancy=0).discrepancy is None
+    with pytest.raises(ParameterError, match=r"discrepancy = -0.1 is not allowed"):
+        fit(s, known=known, discrepancy=-0.1)
+    with pytest.raises(ParameterError, match=r"discrepancy = \(0.1, 2\) is not allowed"):
+        fit(s, known=known, discrepancy=(0.1, 2))
+    fixed = mdroll.inverse.model.Correction((0.0, 10.0), (0.0, 0.0))
+    with pytest.raises(ParameterError, match="applies to the closed form alone"):
+        fit(s, known=known, correction=fixed, discrepancy=(0.03, 0.02))

@@ -84,6 +84,13 @@ FILL_CHECKS = ("auto", "on", "off")
 #: this many, until it changes by less than :data:`FILL_CHECK_TOLERANCE` (relative).
 FILL_CHECK_ITERATIONS = 5
 FILL_CHECK_TOLERANCE = 1e-3
+#: The model discrepancy of a closed-form fit of a table (:func:`fit`'s ``discrepancy``): the
+#: ratio r(q) of the exact MDR spectrum to the closed form, which a table cannot simulate, taken
+#: as unknown, ``log r(q) = c0 + c1 log2(q / q_mid) +- 0`` with c0 and c1 independent, of mean 0 and
+#: standard deviations (level, tilt per octave) = the root mean squares of the least-squares
+#: intercept and slope of log r that the simulated correction measured in the full grid (K >= 100:
+#: 0.027 and 0.018 per knot, 252 round trips; docs/inverse.md, "The model discrepancy of a table").
+DISCREPANCY = (0.03, 0.02)
 _HUGE = 1e30
 
 
@@ -123,6 +130,7 @@ class FitResult:
     correction: dict | None = None
     correction_used: Correction | None = None
     fill_check: dict | None = None
+    discrepancy: dict | None = None
 
     def to_dict(self) -> dict:
         """A JSON-ready dict (arrays as lists; the band's data and model included)."""
@@ -136,7 +144,7 @@ class FitResult:
             "passes": self.passes, "passes_assumed": self.passes_assumed, "success": self.success,
             "message": self.message, "quantity": self.quantity,
             "profiles": self.profiles, "truth": self.truth, "bootstrap": self.bootstrap, "correction": self.correction,
-            "fill_check": self.fill_check,
+            "fill_check": self.fill_check, "discrepancy": self.discrepancy,
             "convention": "two-sided PSD per rad/s on omega (rad/s)",
             "omega": self.omega.tolist(), "data": self.data.tolist(), "model": self.model.tolist(),
         }
@@ -168,6 +176,11 @@ class FitResult:
                          f"{len(c['iterates'])} iterations" + ("" if c["converged"] else " (not converged)"))
         elif c:
             lines.append(f"simulated correction skipped: {c.get('skipped', 'not converged')}")
+        d = self.discrepancy
+        if d:
+            widened = ", ".join(f"{n} x{w:.2g}" for n, w in d["widening"].items() if w >= 1.1) or "none by 10 %"
+            lines.append(f"model discrepancy (not simulated): log r = 0 +- {d['level']:g} +- {d['tilt']:g} per octave; "
+                         f"intervals widened: {widened}")
         f = self.fill_check
         if f:
             widened = ", ".join(f"{n} x{w:.2g}" for n, w in f["widening"].items() if w >= 1.1) or "none by 10 %"
@@ -306,7 +319,7 @@ def _check_band(band, spectrum: Spectrum) -> tuple[float, float]:
 def fit(spectrum: Spectrum, known: dict | None = None, free=None, band=None, passes: int | None = None,
         bin: int = 1, start: dict | None = None, profile: bool = True, profile_points: int = 9,
         correction=None, correction_passes: int | None = None, device: str = "auto", runner=None,
-        fill_check: str = "auto") -> FitResult:
+        fill_check: str = "auto", discrepancy: float | None = None) -> FitResult:
     """Fit the forward model (:mod:`mdroll.inverse.model`) to ``spectrum`` by the Whittle likelihood.
 
     Parameters
@@ -332,17 +345,35 @@ def fit(spectrum: Spectrum, known: dict | None = None, free=None, band=None, pas
         the edge displacement of eq 47, ``h0 R / (2 a)`` of the refit's own estimate, and add the
         shift of every free parameter to its variance (:func:`_fill_check`); "auto" where the noise
         floor and a_jitter are both free, "on" wherever a_jitter is free.
+    discrepancy : (level, tilt) >= 0, the closed form's unknown discrepancy with correction "none":
+        ``log r(q) = c0 + c1 log2(q / q_mid)`` (q_mid the band's geometric middle, in rad/m) with
+        c0 and c1 of mean 0 and standard deviations level and tilt (per octave), at knots an
+        octave apart over the band, added to the covariance by the delta method
+        (:func:`_correction_covariance`) and recorded in ``result.discrepancy``; None (default):
+        :data:`DISCREPANCY` for a table (a spectrum without the simulation's settings, which the
+        simulated correction needs), none otherwise; 0: none.
 
     Returns a :class:`FitResult`. Bad input ends with a ParameterError naming it.
     """
     if fill_check not in FILL_CHECKS:
         raise ParameterError(f"fill_check = {fill_check!r} is not allowed: use one of {', '.join(map(repr, FILL_CHECKS))}")
-    simulate = _correction_mode(correction, spectrum) == "simulated"
+    mode = _correction_mode(correction, spectrum)
+    simulate = mode == "simulated"
+    sigma = _discrepancy_sigma(discrepancy, mode, spectrum)
     if simulate and not {"L", "dx", "nu"} <= set(spectrum.simulation):
         raise ParameterError("correction = 'simulated' needs the simulation's L, dx and nu (an mdroll spectrum, or a "
                              "table given simulation={'L': ..., 'dx': ..., 'nu': ...}); use correction='none' otherwise")
     problem = _Problem(spectrum, known, free, band, passes, bin,
                        correction if isinstance(correction, Correction) else None)
+    if sigma:
+        from .correction import knots
+
+        positions = knots((problem.omega[0] / problem.v0, problem.omega[-1] / problem.v0))
+        octaves = (np.asarray(positions) - np.mean(positions)) / math.log(2.0)
+        basis = np.column_stack([np.ones_like(octaves), octaves])  # knot values = basis @ (c0, c1)
+        prior = Correction(positions, (0.0,) * len(positions),
+                           tuple(map(tuple, (basis @ np.diag(np.square(sigma)) @ basis.T).tolist())))
+        problem.setting = dataclasses.replace(problem.setting, correction=prior)
     p0 = _starting_values(problem, start or {})
     theta, best = _estimate(problem, np.clip(problem.theta(p0), problem.lower, problem.upper))
     if simulate:
@@ -361,7 +392,47 @@ def fit(spectrum: Spectrum, known: dict | None = None, free=None, band=None, pas
             result.correction = {**(result.correction or {}), **final.correction}
     else:
         result = _result(problem, theta, best, spectrum, profile, profile_points)
+        if sigma:
+            result = _discrepancy_record(result, sigma)
     return _fill_check(spectrum, result, bin, fill_check)
+
+
+def _discrepancy_sigma(discrepancy, mode: str, spectrum: Spectrum) -> tuple | None:
+    """The (level, tilt) of :func:`fit`'s ``discrepancy``, checked, or None for none: the default's
+    rule; an explicit one only with the closed form alone."""
+    if discrepancy is None:
+        return DISCREPANCY if mode == "none" and not spectrum.simulation else None
+    if isinstance(discrepancy, (int, float)) and not isinstance(discrepancy, bool) and discrepancy == 0:
+        return None
+    try:
+        level, tilt = (float(v) for v in discrepancy)
+    except (TypeError, ValueError):
+        level = tilt = math.nan
+    if not (0 <= level < 1 and 0 <= tilt < 1):
+        raise ParameterError(f"discrepancy = {discrepancy!r} is not allowed: give (level, tilt per octave) of log r, "
+                             "each in [0, 1), or 0 for none")
+    if mode != "none":
+        raise ParameterError(f"discrepancy = {discrepancy!r} applies to the closed form alone (correction='none'), "
+                             f"not to correction = {mode!r}, which measures r")
+    return (level, tilt) if level or tilt else None
+
+
+def _discrepancy_record(result: FitResult, sigma: tuple) -> FitResult:
+    """The fit with the discrepancy prior (r = 1, its covariance from ``sigma`` = (level, tilt),
+    held as its correction) recorded as ``result.discrepancy`` (the knots, level and tilt, the variance added per parameter in the fitted scale,
+    the widening of each interval and the intervals without it) instead of a correction."""
+    record = result.correction
+    added = record["variance_fitted_scale"]
+    without, widening = {}, {}
+    for name in result.free:
+        total = result.stderr[name] / (result.estimates[name] if PARAMETERS[name][1] == "log" else 1.0)
+        local = math.sqrt(max(total**2 - added[name], 0.0))
+        widening[name] = total / local if 0 < local < math.inf else 1.0
+        theta = _to_fitted(name, result.estimates[name])
+        without[name] = [_from_fitted(name, theta - Z95 * local), _from_fitted(name, theta + Z95 * local)]
+    return dataclasses.replace(result, correction=None, discrepancy={
+        "level": sigma[0], "tilt": sigma[1], "q_knots": record["q_knots"], "variance_fitted_scale": added, "widening": widening,
+        "ci95_without": without})
 
 
 def refit(job, bin: int = 1, profile: bool = False, profile_points: int = 9) -> FitResult:
@@ -455,6 +526,10 @@ def _result(problem: _Problem, theta, best, spectrum: Spectrum, profile: bool, p
     jac = problem.log_model_jacobian(theta)
     information = kappa * jac.T @ jac
     raw_cov, unidentified = _inverse_information(information, problem.free)
+    # r's part by the delta method, with I^-1 itself: the cutoffs' resolution below is a variance,
+    # not information (added to I^-1 first, it made G's q_min row kappa J^T J_c times the bin's
+    # variance: q_min's interval 12x too wide under a 0.02 per octave tilt)
+    correction_cov = _correction_covariance(problem, theta, raw_cov, jac, unidentified)
     cov = scale * raw_cov
     for name in ("q_min", "q_max"):  # a cutoff is located to within a bin: its uniform variance
         if name in problem.free and name not in unidentified:
@@ -462,7 +537,6 @@ def _result(problem: _Problem, theta, best, spectrum: Spectrum, profile: bool, p
             resolution = (problem.setting.bin_width / problem.v0 / _from_fitted(name, theta[i])) ** 2 / 12.0
             cov[i, i] += resolution
             raw_cov[i, i] += resolution
-    correction_cov = _correction_covariance(problem, theta, raw_cov, jac, unidentified)
     cov = cov + correction_cov
     if problem.setting.correction is not None and problem.setting.correction.gain:
         gain = np.asarray(problem.setting.correction.gain)
