@@ -419,8 +419,9 @@ def _discrepancy_sigma(discrepancy, mode: str, spectrum: Spectrum) -> tuple | No
 
 def _discrepancy_record(result: FitResult, sigma: tuple) -> FitResult:
     """The fit with the discrepancy prior (r = 1, its covariance from ``sigma`` = (level, tilt),
-    held as its correction) recorded as ``result.discrepancy`` (the knots, level and tilt, the variance added per parameter in the fitted scale,
-    the widening of each interval and the intervals without it) instead of a correction."""
+    held as its correction) recorded as ``result.discrepancy`` instead of a correction: the knots
+    (q, rad/m), level and tilt, the variance added per parameter (fitted scale), the widening of
+    each interval and the intervals without it."""
     record = result.correction
     added = record["variance_fitted_scale"]
     without, widening = {}, {}
@@ -431,8 +432,8 @@ def _discrepancy_record(result: FitResult, sigma: tuple) -> FitResult:
         theta = _to_fitted(name, result.estimates[name])
         without[name] = [_from_fitted(name, theta - Z95 * local), _from_fitted(name, theta + Z95 * local)]
     return dataclasses.replace(result, correction=None, discrepancy={
-        "level": sigma[0], "tilt": sigma[1], "q_knots": record["q_knots"], "variance_fitted_scale": added, "widening": widening,
-        "ci95_without": without})
+        "level": sigma[0], "tilt": sigma[1], "q_knots": record["q_knots"], "variance_fitted_scale": added,
+        "widening": widening, "ci95_without": without})
 
 
 def refit(job, bin: int = 1, profile: bool = False, profile_points: int = 9) -> FitResult:
