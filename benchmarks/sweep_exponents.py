@@ -31,10 +31,8 @@ def main() -> None:
     device = resolve_device(args.device)
     study = STUDIES["full"]
     record = {"environment": environment(device), "algorithm": "sweep", "sections": {}}
-    for section, (sizes, realizations) in study.sweeps(device).items():
-        if device.startswith("cuda"):
-            realizations = study.cuda_realizations.get(section, {}).get("sweep", realizations)
-        realizations = args.realizations or realizations
+    for section, (sizes, _) in study.sweeps(device).items():
+        realizations = args.realizations or study.realizations(device, section, "sweep")
         points = [force_time(p, "sweep", realizations, device, args.repeats) for p in sizes]
         p, err = fit_exponent(np.array([q["n"] for q in points]), np.array([q["force_s"] for q in points]))
         record["sections"][section] = {"points": points, "exponent": p, "exponent_stderr": err}

@@ -64,6 +64,12 @@ class StudySize:
         return {"refinement": ([Params(L=length, dx=length / 2**e) for e in exps], reps),
                 "distance": ([Params(L=2**e * 5e-6) for e in exps_d], reps_d)}
 
+    def realizations(self, device: str, section: str, algorithm: str) -> int:
+        """Lines a size of ``section`` times ``algorithm`` with on ``device``: the section's own
+        (:meth:`sweeps`), or on CUDA its entry in ``cuda_realizations``."""
+        reps = self.sweeps(device)[section][1]
+        return self.cuda_realizations.get(section, {}).get(algorithm, reps) if device.startswith("cuda") else reps
+
 
 STUDIES = {
     # minutes on a 2-core CPU
@@ -193,9 +199,7 @@ def run_study(size: str = "quick", devices=None, progress=print) -> dict:
         for device in devices:
             sizes, reps = study.sweeps(device)[section]
             for algorithm in ALGORITHMS:
-                count = reps
-                if device.startswith("cuda"):
-                    count = study.cuda_realizations.get(section, {}).get(algorithm, reps)
+                count = study.realizations(device, section, algorithm)
                 for p in sizes:
                     if _allowed(device, algorithm, p.n_points, count, full):
                         record[section].append(force_time(p, algorithm, count, device, study.repeats))
