@@ -7,17 +7,17 @@ from reference import contact_reach, direct_force, sweep_force, to_numpy
 from mdroll import Params, contact_force, rough_lines, step_range
 from mdroll.devices import to_warp
 from mdroll.ensemble.prepare import prepare_lines
-from mdroll.ensemble.sweep import FORMS, sweep_command, sweep_tile
+from mdroll.ensemble.sweep import FORMS, stream_layout, sweep_command, sweep_tile
 
 SMALL = Params(L=0.03, dx=20e-6)  # 1500 springs, a/dx = 253
 
 
 def _sweep(lines, p, boundary, d, device, tile_steps=None, block_dim=None, loads=None, h_max=None, form=None,
-           chunk=None):
+           chunk=None, per_lane=None, segment=None):
     lines = to_warp(np.asarray(lines) if isinstance(lines, np.ndarray) else lines, device)  # on the device
     prepared = prepare_lines(lines, p, "sweep", boundary, d, device, h_max=h_max)
     command, force = sweep_command(prepared, p, d, device, tile_steps=tile_steps, block_dim=block_dim, loads=loads,
-                                   form=form, chunk=chunk)
+                                   form=form, chunk=chunk, per_lane=per_lane, segment=segment)
     command.launch()
     return to_numpy(force)
 
@@ -137,6 +137,17 @@ def test_same_force_whatever_the_form_the_tile_the_block_the_chunk_or_the_batch(
         for _ in range(2):
             command.launch()
             assert np.max(np.abs(to_numpy(force) - reference)) <= 1e-12 * p.F_N, chunk
+    # the stream: segments of 2 chunks to the whole line, chunks of 1 to 16 steps (64 to 256 lanes
+    # on CUDA, 1 to 16 steps a lane, rings that wrap mid-chunk); launched twice
+    streams = ([(1, 1, 2), (1, 3, 48), (1, 16, 4096)] if device == "cpu"
+               else [(32, 1, 64), (64, 3, 384), (128, 8, 2048), (256, 4, None), (256, 2, 1024)])
+    for lanes, per_lane, segment in streams:
+        prepared = prepare_lines(to_warp(lines, device), p, "sweep", "open", d, device)
+        command, force = sweep_command(prepared, p, d, device, form="stream", block_dim=lanes, per_lane=per_lane,
+                                       segment=segment)
+        for _ in range(2):
+            command.launch()
+            assert np.max(np.abs(to_numpy(force) - reference)) <= 1e-12 * p.F_N, (lanes, per_lane, segment)
     # one by one, with the batch's wheel positions (h_max): each line's own bounds and scale
     alone = np.concatenate([_sweep(lines[r:r + 1], p, "open", d, device, h_max=lines.max()) for r in range(3)])
     assert np.max(np.abs(alone - reference)) <= 1e-12 * p.F_N
@@ -151,6 +162,29 @@ def test_default_tiles_grow_with_the_band_and_their_blocks_with_the_tile():
     assert sweep_tile(3582, "cuda") == (4096, 256)
     assert sweep_tile(44, "cpu") == (4096, 1)
     assert sweep_tile(44, "cuda:0", tile_steps=1024) == (1024, 128)
+
+
+def test_stream_layout_keeps_the_multiprocessor_busy_as_the_band_grows(monkeypatch):
+    """On CUDA the first layout of STREAM_LAYOUTS that keeps 16 warps resident (ring of chunk +
+    band bins in shared memory, registers): 128 lanes x 8 steps at the thesis's band, more
+    lanes and fewer steps a lane as the band grows; None beyond a block's shared memory. Each
+    segment spans at least 16 bands and two chunks; STREAM_WAVES waves of blocks where the lines allow."""
+    import mdroll.ensemble.sweep as sweep
+
+    monkeypatch.setattr(sweep, "is_cuda", lambda device: True)
+    monkeypatch.setattr(sweep, "warp", lambda: type("W", (), {"get_device": lambda device: type("D", (), {"sm_count": 132})}))
+    thesis = stream_layout(47, 300, 2**20, "cuda:0")
+    assert (thesis["block_dim"], thesis["per_lane"], thesis["ring"], thesis["resident"]) == (128, 8, 2048, 5)
+    waves = sweep.STREAM_WAVES
+    assert thesis["segment"] == -(-300 * 2**20 // (waves * 132 * 5) // 1024) * 1024
+    fine = stream_layout(2050, 64, 2**21, "cuda:0")
+    assert (fine["block_dim"], fine["per_lane"], fine["ring"]) == (256, 4, 4096)
+    finer = stream_layout(4100, 64, 2**22, "cuda:0")
+    assert (finer["block_dim"], finer["per_lane"], finer["ring"]) == (256, 2, 5120)
+    assert finer["segment"] == -(-max(64 * 2**22 // (waves * 132 * 2), 16 * 4100) // 512) * 512
+    assert stream_layout(12000, 64, 2**22, "cuda:0") is None  # 13 Ki bins: more than 227 KiB
+    monkeypatch.undo()
+    assert stream_layout(47, 3, 1000, "cpu")["block_dim"] == 1
 
 
 def test_sweep_runs_decoupled_and_coupled_ensembles_as_the_tree():
@@ -200,5 +234,7 @@ def test_band_beyond_the_tiles_int32_sums_runs_sequentially(device):
     assert np.max(np.abs(to_numpy(contact_force(lines, p, "sweep", device=device)) - tree)) <= 1e-12 * p.F_N
     with pytest.raises(ParameterError, match=rf"band of uncertain contact spans \d+ springs .* beyond the {MAX_BAND}"):
         _sweep(lines, p, "open", p.d0, device, form="tiles")
-    with pytest.raises(ParameterError, match="form = 'rows': the sweep's forms are 'tiles', 'sequential'"):
+    with pytest.raises(ParameterError, match="the stream form's ring allows: use form='sequential'"):
+        _sweep(lines, p, "open", p.d0, device, form="stream")
+    with pytest.raises(ParameterError, match="form = 'rows': the sweep's forms are 'stream', 'tiles', 'sequential'"):
         _sweep(lines, p, "open", p.d0, device, form="rows")

@@ -2,9 +2,12 @@
 
 The sweep is exact and O(n) at a fixed indentation d (physics.md section 4). It reads the lines,
 their prefix sums (eq 18) and the row bounds ``(min h, max h)`` of a :class:`PreparedLines`.
-On CUDA it runs as tiles of steps, a block's lanes scattering and scanning the events together;
-on the CPU, where Warp runs one lane a thread, as a sequential sweep of each chunk of steps
-(:data:`FORMS`; the kernels' docstring has both and the measurements that chose them).
+On CUDA it runs as a stream: a block sweeps a long segment of a row chunk by chunk, its lanes
+scattering and scanning the events together and carrying the totals and the pending events
+from chunk to chunk (:mod:`mdroll.kernels.sweep_stream`); on the CPU, where Warp runs one lane a
+thread, as a sequential sweep of each chunk of steps. The earlier CUDA form, independent tiles
+of steps each with its own anchor, stays selectable (:data:`FORMS`; the kernels' docstrings
+have the measurements that chose the defaults).
 """
 
 from __future__ import annotations
@@ -38,8 +41,8 @@ SEQUENTIAL_CHUNK_PER_BAND = 16
 #: as at the wide bands of finer lines (24-25 ns).
 RING_MIN_SLOTS = 64
 #: The sweep's forms and the one each kind of device runs by default.
-FORMS = ("tiles", "sequential")
-DEFAULT_FORM = {"cuda": "tiles", "cpu": "sequential"}
+FORMS = ("stream", "tiles", "sequential")
+DEFAULT_FORM = {"cuda": "stream", "cpu": "sequential"}
 #: A tile spans at least this many times the widest band (springs whose contact at the tile's
 #: start is uncertain, one side): the band is read 2 + 2 x T / band times a tile, so the work a
 #: step stays O(1) as the band grows under refinement.
@@ -75,21 +78,94 @@ def sweep_tile(band: int, device: str, tile_steps: int | None = None, block_dim:
     return tile_steps, block_dim
 
 
+#: The stream form (kernels/sweep_stream.py) on CUDA: its layouts ``(lanes a block, steps a lane
+#: a chunk, registers a lane)``, in order of preference; the launch takes the first that keeps
+#: STREAM_MIN_WARPS warps resident on a multiprocessor (its ring of ``lanes x steps + band`` bins
+#: in shared memory, its registers), else the one that keeps the most: a wide band (a fine line)
+#: trades steps a lane for lanes.
+STREAM_LAYOUTS = ((128, 8, 80), (256, 4, 80), (256, 2, 80), (512, 1, 80))
+STREAM_MIN_WARPS = 16
+#: What an H100/H200 multiprocessor holds: shared memory (bytes; a block at most 227 KiB),
+#: registers, lanes.
+SM_SHARED = 228 * 1024
+BLOCK_SHARED = 227 * 1024
+SM_REGISTERS = 65536
+SM_LANES = 2048
+#: The CPU runs a block as one lane, ``STREAM_CPU_PER_LANE`` steps a chunk.
+STREAM_CPU_PER_LANE = 16
+#: Blocks a launch aims at: this many per resident block slot of the device, so that the last
+#: wave's tail is short; a segment is never shorter than STREAM_SEGMENT_PER_BAND times the band
+#: (its anchor reads the band's 2 x band springs once) nor than two chunks.
+STREAM_WAVES = 8
+STREAM_SEGMENT_PER_BAND = 16
+
+
+def stream_layout(band: int, rows: int, steps: int, device: str, block_dim: int | None = None,
+                  per_lane: int | None = None, segment: int | None = None) -> dict | None:
+    """The stream form's launch for a widest band of ``band`` springs and ``rows x steps`` steps:
+    ``{"block_dim", "per_lane", "max_registers", "ring", "segment"}``, or None where no ring
+    fits a block's shared memory (or the band passes MAX_STREAM_BAND). ``block_dim`` and
+    ``per_lane`` pick a layout, ``segment`` the steps a block."""
+    from ..kernels.sweep_stream import BIN_BYTES, MAX_STREAM_BAND, RING_UNIT
+
+    if band > MAX_STREAM_BAND:
+        return None
+    wp = warp()
+    if not is_cuda(device):
+        chunk = per_lane or STREAM_CPU_PER_LANE
+        ring = -(-(chunk + band + 1) // 32) * 32
+        if ring * BIN_BYTES > BLOCK_SHARED:
+            return None
+        layout = {"block_dim": 1, "per_lane": chunk, "max_registers": None, "ring": ring, "resident": 1}
+        slots = 1
+    else:
+        best = None
+        for lanes, steps_a_lane, registers in STREAM_LAYOUTS:
+            if (block_dim and lanes != block_dim) or (per_lane and steps_a_lane != per_lane):
+                continue
+            ring = -(-(lanes * steps_a_lane + band + 1) // RING_UNIT) * RING_UNIT
+            shared = ring * BIN_BYTES + 1024
+            if shared > BLOCK_SHARED:
+                continue
+            resident = int(min(SM_SHARED // shared, SM_REGISTERS // (lanes * registers), SM_LANES // lanes))
+            if best is None or resident * lanes > best["resident"] * best["block_dim"]:
+                best = {"block_dim": lanes, "per_lane": steps_a_lane, "max_registers": registers, "ring": ring,
+                        "resident": resident}
+            if resident * lanes >= 32 * STREAM_MIN_WARPS:
+                best = {"block_dim": lanes, "per_lane": steps_a_lane, "max_registers": registers, "ring": ring,
+                        "resident": resident}
+                break
+        if best is None and block_dim and per_lane:  # a layout of the caller's own
+            ring = -(-(block_dim * per_lane + band + 1) // RING_UNIT) * RING_UNIT
+            best = {"block_dim": block_dim, "per_lane": per_lane, "max_registers": None, "ring": ring, "resident": 1}
+        if best is None:
+            return None
+        layout = best
+        slots = wp.get_device(device).sm_count * layout["resident"]
+    chunk = layout["block_dim"] * layout["per_lane"]
+    if segment is None:
+        segment = max(-(-rows * steps // (STREAM_WAVES * slots)), STREAM_SEGMENT_PER_BAND * band, 2 * chunk)
+    layout["segment"] = -(-segment // chunk) * chunk
+    return layout
+
+
 def sweep_command(prepared, params: Params, d: float, device: str, out=None, offset: float = 0.0,
                   tile_steps: int | None = None, block_dim: int | None = None, loads: int | None = None,
-                  form: str | None = None, chunk: int | None = None):
+                  form: str | None = None, chunk: int | None = None, per_lane: int | None = None,
+                  segment: int | None = None):
     """The sweep's force launch, recorded (``wp.Launch``; run with ``.launch()``), and the
     (R, steps) array it writes: ``F - offset`` (N) at indentation d (m) for every step.
 
     ``prepared`` needs ``lines``, ``prefix``, ``bounds``, ``h_low`` and ``h_top`` (see
     :func:`mdroll.ensemble.prepare.prepare_lines`). ``form`` (:data:`FORMS`) picks the kernel,
-    by default :data:`DEFAULT_FORM` of the device's kind; for the tiles ``tile_steps`` and
-    ``block_dim`` override the defaults of :func:`sweep_tile` and ``loads`` CUDA_LOADS (1 on the
-    CPU); for the sequential form ``chunk`` overrides the default of max(SEQUENTIAL_CHUNK,
-    SEQUENTIAL_CHUNK_PER_BAND x band). The force is the same to rounding whatever they are. A
-    batch whose band of uncertain contact is wider than :data:`mdroll.kernels.sweep.MAX_BAND`
-    springs, where the tiles' int32 sums could overflow, runs in the sequential form (exact at
-    any band); ``form="tiles"`` asked for then is refused (ParameterError).
+    by default :data:`DEFAULT_FORM` of the device's kind; for the stream ``block_dim``,
+    ``per_lane`` and ``segment`` override the layout of :func:`stream_layout`; for the tiles
+    ``tile_steps`` and ``block_dim`` override the defaults of :func:`sweep_tile` and ``loads``
+    CUDA_LOADS (1 on the CPU); for the sequential form ``chunk`` overrides the default of
+    max(SEQUENTIAL_CHUNK, SEQUENTIAL_CHUNK_PER_BAND x band). The force is the same to rounding
+    whatever they are. A batch whose band of uncertain contact is too wide for the stream's ring
+    in shared memory runs in the sequential form (exact at any band); the stream, or the tiles
+    beyond :data:`mdroll.kernels.sweep.MAX_BAND`, asked for then are refused (ParameterError).
     """
     from ..kernels.sweep import MAX_BAND, contact_force_sequential, sweep_kernel
 
@@ -101,7 +177,7 @@ def sweep_command(prepared, params: Params, d: float, device: str, out=None, off
     band = reach_strict(d + p.h_top, curvature) - max(reach_strict(d + p.h_low, curvature), 0)
     if form is None:
         form = DEFAULT_FORM["cuda" if is_cuda(device) else "cpu"]
-        if band > MAX_BAND:
+        if form == "stream" and stream_layout(band, rows, p.steps, device) is None:
             form = "sequential"
     if form not in FORMS:
         raise ParameterError(f"form = {form!r}: the sweep's forms are {', '.join(map(repr, FORMS))}")
@@ -112,6 +188,19 @@ def sweep_command(prepared, params: Params, d: float, device: str, out=None, off
             f"use form='sequential'"
         )
     force = out if out is not None else wp.empty((rows, p.steps), dtype=wp.float64, device=device)
+    if form == "stream":
+        from ..kernels.sweep_stream import stream_kernel
+
+        layout = stream_layout(band, rows, p.steps, device, block_dim, per_lane, segment)
+        if layout is None:
+            raise ParameterError(f"the sweep's band of uncertain contact spans {band} springs a side, wider than the "
+                                 f"stream form's ring allows: use form='sequential'")
+        kernel = stream_kernel(layout["block_dim"], layout["per_lane"], layout["ring"], layout["max_registers"])
+        inputs = [p.lines, p.prefix, p.bounds, p.n_work, p.first, p.steps, layout["segment"], d, curvature,
+                  params.k_spring, offset, force]
+        command = wp.launch_tiled(kernel, dim=(rows, -(-p.steps // layout["segment"])), inputs=inputs,
+                                  block_dim=layout["block_dim"], device=device, record_cmd=True)
+        return command, force
     if form == "sequential":
         chunk = chunk or max(SEQUENTIAL_CHUNK, 1 << (SEQUENTIAL_CHUNK_PER_BAND * band - 1).bit_length())
         chunks = -(-p.steps // chunk)

@@ -1,0 +1,459 @@
+"""The sweep's stream form: a block sweeps a long segment of one row in chunks, carrying its totals
+and its pending events from chunk to chunk (physics.md section 4; the sweep's exact O(n) force at
+fixed indentation, :mod:`mdroll.kernels.sweep` for the events and the reach M_i).
+
+Per block: row r and the steps of one segment, ``c = first + s`` for s in [s_begin, s_end), in
+chunks of ``T = lanes x S`` steps, lane l owning the S consecutive steps ``c0 + l S + q``.
+
+State at step c, over the contact set C(c) (offsets ``m = i - c``): the count N, ``P = sum m``,
+and ``U = sum (h_i + d - curvature m^2)`` (m), so that ``F = k U`` (eq 10-12). From step c - 1 to
+c every offset drops by one: ``U += curvature (2 P - N)``, ``P -= N`` (exact integers), then the
+springs that enter at c (offset +M, value ``u_i = h_i + d - curvature M_i^2 > 0``) join, and those
+whose last step was c - 1 (offset -M - 1 after the shift, value ``u_i - curvature (2 M_i + 1)``)
+leave. U is kept as ``U_anchor + curvature Z + Y / scale`` with two exact int64 totals: Z sums
+the shifts' ``2 P - N`` and the leavers' ``2 M + 1``, Y the fixed-point values ``round(u_i
+scale)``: a spring leaves with the very integer it entered with, so no rounding accumulates
+along the segment (a member's error is at most ``0.5 / scale``, below 1e-13 F_N for any band).
+
+Events: a spring enters at ``i - M_i`` and leaves after ``i + M_i``. With ``near = max(core, 0)``
+(the certain core, :func:`~mdroll.kernels.common.reach_strict` of ``d + min h``) and ``outer``
+(the reach of ``d + max h``), a chunk starting at c0 reads the entering springs
+``c0 + outer + j`` and the leaving springs ``c0 - near - 1 + j`` (j < T): both put their event
+at a step in ``[c0 + j, c0 + j + band]``, ``band = outer - near``. So each spring is read once
+entering and once leaving (the second read ~2 outer springs later, an L1/L2 hit at the thesis's
+sizes), and the events wait in a ring of ``RING >= T + band`` bins in shared memory. A bin holds
+five int32 sums: the counts (entries + 2^16 leavers), the entries' and the leavers' lags
+``M - near`` (distinct within a bin, so each sum stays below band (band + 1) / 2), and the fixed
+values in a 16-bit low limb and a signed high limb (``scale`` sized from the band so that no
+limb sum passes 2^31).
+
+Chunk: (1) each lane loads its S entering and S leaving springs and adds their events to the
+ring (shared-memory int32 atomics); barrier. (2) each lane reads and clears its S bins and
+composes their transitions into one affine map of the state (``N -> N + a``, ``P -> P - k N + b``,
+``Z -> Z + 2 k P - k^2 N + c``, ``Y -> Y + y`` over k steps): warp shuffles scan the lanes' maps,
+the warps' totals go through shared memory (one barrier), and each lane applies the chunk's
+incoming state, the warps before it and the lanes before it, then steps through its S bins
+writing ``F - offset``. The last lane leaves the chunk's outgoing state for the next chunk.
+The segment starts from an anchor at ``a = c0 - 1``: its core in closed form (prefix sums, eq 18)
+and its bands spring by spring; band springs that enter or leave later put their events in the
+ring.
+"""
+
+import functools
+
+import warp as wp
+
+from .common import full_contact_sum, reach_strict
+
+#: Events a bin can count of each kind: entries add 1 to the bin's count word, leavers 2^16.
+COUNT_SHIFT = 16
+#: The widest band the ring's int32 sums allow (a bin's entries, and its leavers, have distinct
+#: lags <= band, each kind's count stays below 2^16 and the low limbs' sum below 2^31).
+MAX_STREAM_BAND = 16383
+#: A chunk's ring needs T + band bins; it comes in multiples of RING_UNIT bins, each bin five
+#: int32 words, padded one word in 32.
+RING_UNIT = 1024
+BIN_BYTES = 5 * 4 * 33 / 32
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+atomicAdd(((int*)base) + i, value);
+#else
+((int*)base)[i] += value;
+#endif
+""")
+def shared_add(base: wp.uint64, i: int, value: int):
+    """``base[i] += value`` on an int32 in shared memory, atomically between a block's lanes."""
+    ...
+
+
+@wp.func_native("""return ((int*)base)[i];""")
+def shared_int(base: wp.uint64, i: int) -> int:
+    """The int32 at ``base[i]`` in shared memory."""
+    ...
+
+
+@wp.func_native("""((int*)base)[i] = value;""")
+def set_shared_int(base: wp.uint64, i: int, value: int):
+    """``base[i] = value`` for an int32 in shared memory."""
+    ...
+
+
+@wp.func_native("""((double*)base)[i] = value;""")
+def set_shared_float(base: wp.uint64, i: int, value: wp.float64):
+    """``base[i] = value`` for a float64 in shared memory."""
+    ...
+
+
+@wp.func_native("""return ((double*)base)[i];""")
+def shared_float(base: wp.uint64, i: int) -> wp.float64:
+    """The float64 at ``base[i]`` in shared memory."""
+    ...
+
+
+@wp.func_native("""return ((long long*)base)[i];""")
+def shared_int64(base: wp.uint64, i: int) -> wp.int64:
+    """The int64 at ``base[i]`` in shared memory."""
+    ...
+
+
+@wp.func_native("""((long long*)base)[i] = value;""")
+def set_shared_int64(base: wp.uint64, i: int, value: wp.int64):
+    """``base[i] = value`` for an int64 in shared memory."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+return __shfl_up_sync(0xffffffffu, (long long)value, delta);
+#else
+return value;
+#endif
+""")
+def shuffle_up(value: wp.int64, delta: int) -> wp.int64:
+    """The value of the lane ``delta`` below in the warp (CUDA; every lane of the warp must call)."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+return __shfl_xor_sync(0xffffffffu, (long long)value, mask);
+#else
+return value;
+#endif
+""")
+def shuffle_xor(value: wp.int64, mask: int) -> wp.int64:
+    """The value of lane ``lane ^ mask`` of the warp (CUDA; every lane of the warp must call)."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+return __shfl_xor_sync(0xffffffffu, value, mask);
+#else
+return value;
+#endif
+""")
+def shuffle_xor_float(value: wp.float64, mask: int) -> wp.float64:
+    """The float64 of lane ``lane ^ mask`` of the warp (CUDA; every lane of the warp must call)."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+__syncthreads();
+#else
+WP_TILE_SYNC();
+#endif
+""")
+def barrier():
+    """A block's barrier."""
+    ...
+
+
+#: An affine map of the state over k steps (k implicit): (a, b, c, y), see the module docstring.
+step_map = wp.types.vector(length=4, dtype=wp.int64)
+#: The state: (N, P, Z, Y).
+state4 = wp.types.vector(length=4, dtype=wp.int64)
+
+
+@wp.func
+def apply_map(state: state4, f: step_map, k: wp.int64) -> state4:
+    """The state after k steps of the map f: ``(N + a, P - k N + b, Z + 2 k P - k^2 N + c, Y + y)``."""
+    n = state[0]
+    p = state[1]
+    return state4(n + f[0], p - k * n + f[1], state[2] + wp.int64(2) * k * p - k * k * n + f[2], state[3] + f[3])
+
+
+@wp.func
+def then_map(first: step_map, second: step_map, k_second: wp.int64) -> step_map:
+    """The map of ``first`` followed by ``second`` (``k_second`` steps)."""
+    return step_map(apply_map(state4(first[0], first[1], first[2], first[3]), second, k_second))
+
+
+@wp.func
+def step(state: state4, counts: int, lag_in: int, lag_out: int, y: wp.int64, near: wp.int64) -> state4:
+    """One step: every offset drops by one, then a bin's events (counts packed as entries +
+    2^16 leavers; lag sums; fixed-point values, entries less leavers)."""
+    n = state[0]
+    p = state[1]
+    z = state[2] + wp.int64(2) * p - n
+    p = p - n
+    entering = wp.int64(counts & 0xFFFF)
+    leaving = wp.int64(counts >> COUNT_SHIFT)
+    lag_sum_out = wp.int64(lag_out)
+    # a leaver's offset -(M + 1) leaves P, and its value's - curvature (2 M + 1) leaves U (into Z)
+    z = z + wp.int64(2) * (near * leaving + lag_sum_out) + leaving
+    p = p + near * (entering + leaving) + leaving + wp.int64(lag_in) + lag_sum_out
+    return state4(n + entering - leaving, p, z, state[3] + y)
+
+
+@wp.func
+def fixed_value(u: wp.float64, scale: wp.float64) -> wp.int64:
+    """``round(u scale)``: a spring's value in the ring's fixed point."""
+    return wp.int64(wp.round(u * scale))
+
+
+@functools.cache
+def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int | None = None):
+    """The stream kernel for blocks of ``block_dim`` lanes (a multiple of 32 on CUDA, 1 on the
+    CPU), ``per_lane`` steps a lane a chunk and a ring of ``ring`` bins (a power of two, at least
+    ``block_dim per_lane + band``). Launched by ``wp.launch_tiled`` over ``(R, segments)``."""
+    BD = block_dim
+    S = per_lane
+    T = BD * S
+    RING = ring
+    if ring % 32 or ring < T + 1 or not (BD == 1 or BD % 32 == 0):
+        raise ValueError(f"ring = {ring} must be a multiple of 32 above block_dim x per_lane = {T}; "
+                         f"block_dim = {BD} 1 or a multiple of 32")
+    WARP = min(BD, 32)
+    WARPS = BD // WARP
+    SCAN_ROUNDS = WARP.bit_length() - 1
+    PADDED = RING + RING // 32  # one word of padding in 32: lanes reading S-strided bins meet no bank twice
+    WORDS = 5 * PADDED
+    ANCHOR = 4 * WARPS + 8
+    SMALL = ANCHOR + 3 * WARPS  # int64 words: the warps' maps, the carried states (two), the anchor's parts
+    K_LANE = S
+    K_WARP = WARP * S
+    # from 8 steps a lane the bins are read twice from shared memory (the second read clears them,
+    # a barrier then closes the chunk) instead of kept in registers between the two passes
+    REREAD = S >= 8
+    bin_map = wp.types.vector(length=1 if REREAD else S, dtype=wp.int32)
+    heights = wp.types.vector(length=S, dtype=wp.float64)
+
+    @wp.func_native("""return (uint64_t)(&memory.data(0));""")
+    def ring_address(memory: wp.tile(dtype=wp.int32, shape=(WORDS,), storage="shared")) -> wp.uint64: ...
+
+    @wp.func_native("""return (uint64_t)(&memory.data(0));""")
+    def small_address(memory: wp.tile(dtype=wp.int64, shape=(SMALL,), storage="shared")) -> wp.uint64: ...
+
+    @wp.func
+    def slot(head: int, ahead: int) -> int:
+        """The padded ring word of the bin ``ahead`` steps past the chunk's first (whose bin is
+        ``head``)."""
+        position = head + ahead
+        if position >= RING:
+            position -= RING
+        return position + (position >> 5)
+
+    @wp.func
+    def add_event(base: wp.uint64, head: int, ahead: int, lag: int, value: wp.int64, leaving: int):
+        at = slot(head, ahead)
+        low = wp.int32(value & wp.int64(0xFFFF))
+        high = wp.int32(value >> wp.int64(16))
+        if leaving != 0:
+            shared_add(base, at, 1 << COUNT_SHIFT)
+            shared_add(base, 2 * PADDED + at, lag)
+            shared_add(base, 3 * PADDED + at, -low)
+            shared_add(base, 4 * PADDED + at, -high)
+        else:
+            shared_add(base, at, 1)
+            shared_add(base, PADDED + at, lag)
+            shared_add(base, 3 * PADDED + at, low)
+            shared_add(base, 4 * PADDED + at, high)
+
+    @wp.kernel(module="unique", enable_backward=False, cuda_max_registers=max_registers)
+    def contact_force_stream(
+        lines: wp.array2d(dtype=wp.float64),
+        prefix: wp.array2d(dtype=wp.float64),
+        bounds: wp.array(dtype=wp.vec2d),
+        n: int,
+        first: int,
+        steps: int,
+        segment: int,
+        d: wp.float64,
+        curvature: wp.float64,
+        k_spring: wp.float64,
+        offset: wp.float64,
+        force: wp.array2d(dtype=wp.float64),
+    ):
+        """``force[r, s] = F - offset`` (N): F (eq 10-12) with the wheel at spring ``first + s``
+        of row r, indentation d (m), for the steps s of this block's segment."""
+        r, g, lane = wp.tid()
+        s_begin = g * segment
+        s_end = wp.min(s_begin + segment, steps)
+        box = bounds[r]
+        core = reach_strict(d + box[0], curvature)
+        outer = reach_strict(d + box[1], curvature)
+        if outer < 0:  # no spring of the row ever touches
+            for s in range(s_begin + lane, s_end, BD):
+                force[r, s] = -offset
+            return
+        near = wp.max(core, 0)
+        band = outer - near
+        # fixed point: |value| <= curvature (2 outer + 1); a bin sums up to band + 1 values of each
+        # sign, so the high limbs (value >> 16) keep below 2^31 with 2^(bits - 1) the largest value
+        width = int(1)
+        while (1 << width) <= band + 1:
+            width += 1
+        bits = 47 - width
+        largest = curvature * wp.float64(2 * outer + 1)
+        scale = wp.float64(float(1 << 20)) * wp.float64(wp.int64(1) << wp.int64(bits - 21)) / largest
+        scale = scale * wp.float64(0.999)
+        inverse_scale = wp.float64(1.0) / scale
+        row = lines[r]
+        near64 = wp.int64(near)
+        memory = wp.tile_zeros(shape=WORDS, dtype=wp.int32, storage="shared")
+        base = ring_address(memory)
+        small = wp.tile_zeros(shape=SMALL, dtype=wp.int64, storage="shared")
+        shared = small_address(small)
+        barrier()  # the zeroed ring before any lane adds to it
+        warp = lane / WARP
+        in_warp = lane - warp * WARP
+
+        # anchor at a = c0 - 1: the core |m| <= core in closed form, the bands spring by spring;
+        # band springs that enter (right) or leave (left) later put their events in the ring
+        a = first + s_begin - 1
+        count = wp.int64(0)
+        offsets = wp.int64(0)
+        level = wp.float64(0.0)
+        if core >= 0 and lane == 0:
+            lo = wp.max(a - core, 0)
+            hi = wp.min(a + core + 1, n)
+            if hi > lo:
+                count = wp.int64(hi - lo)
+                offsets = wp.int64((lo - a + hi - 1 - a) * (hi - lo) // 2)
+                level = full_contact_sum(prefix, r, lo, hi, a, d, curvature)
+        right = outer - core  # m = core + 1 .. outer
+        left = outer - near  # m = -outer .. -near - 1
+        for j in range(lane, right + left, BD):
+            m = core + 1 + j
+            if j >= right:
+                m = -outer + j - right
+            i = a + m
+            if i >= 0 and i < n:
+                h = row[i]
+                level_i = h + d
+                reach = reach_strict(level_i, curvature)
+                if reach >= wp.abs(m):
+                    count += wp.int64(1)
+                    offsets += wp.int64(m)
+                    level += level_i - curvature * wp.float64(m) * wp.float64(m)
+                    if m < 0:
+                        u = level_i - curvature * wp.float64(reach) * wp.float64(reach)
+                        add_event(base, 0, m + reach, reach - near, fixed_value(u, scale), 1)
+                elif reach >= 0 and m > 0:
+                    u = level_i - curvature * wp.float64(reach) * wp.float64(reach)
+                    add_event(base, 0, m - reach - 1, reach - near, fixed_value(u, scale), 0)
+        # the anchor's parts summed over the block: the warp's by shuffles, the warps' in order
+        for round in range(SCAN_ROUNDS):
+            mask = 1 << round
+            count += shuffle_xor(count, mask)
+            offsets += shuffle_xor(offsets, mask)
+            level += shuffle_xor_float(level, mask)
+        if in_warp == 0:
+            set_shared_int64(shared, ANCHOR + 3 * warp, count)
+            set_shared_int64(shared, ANCHOR + 3 * warp + 1, offsets)
+            set_shared_float(shared, ANCHOR + 3 * warp + 2, level)
+        barrier()
+        anchor = state4()
+        anchor_level = wp.float64(0.0)
+        for w in range(WARPS):
+            anchor = anchor + state4(shared_int64(shared, ANCHOR + 3 * w), shared_int64(shared, ANCHOR + 3 * w + 1),
+                                     wp.int64(0), wp.int64(0))
+            anchor_level += shared_float(shared, ANCHOR + 3 * w + 2)
+        if lane == 0:
+            for q in range(4):
+                set_shared_int64(shared, 4 * WARPS + q, anchor[q])
+
+        chunk = int(0)
+        head = int(0)  # the ring bin of the chunk's first step
+        for c0 in range(first + s_begin, first + s_end, T):
+            # 1. events of the chunk's entering and leaving springs
+            for side in range(2):
+                loaded = heights()
+                for q in range(S):
+                    i = c0 + outer + q * BD + lane
+                    if side == 1:
+                        i = c0 - near - 1 + q * BD + lane
+                    loaded[q] = wp.float64(-1.0e300)
+                    if i >= 0 and i < n:
+                        loaded[q] = row[i]
+                for q in range(S):
+                    level_i = loaded[q] + d
+                    reach = reach_strict(level_i, curvature)
+                    if reach >= 0:
+                        u = level_i - curvature * wp.float64(reach) * wp.float64(reach)
+                        if side == 0:
+                            add_event(base, head, outer + q * BD + lane - reach, reach - near, fixed_value(u, scale), 0)
+                        else:
+                            add_event(base, head, q * BD + lane + reach - near, reach - near, fixed_value(u, scale), 1)
+            barrier()
+            # 2. this lane's bins: read, clear, compose into one map
+            counts = bin_map()
+            lags_in = bin_map()
+            lags_out = bin_map()
+            lows = bin_map()
+            highs = bin_map()
+            own = state4()
+            for q in range(S):
+                at = slot(head, lane * S + q)
+                if wp.static(REREAD):
+                    y = wp.int64(shared_int(base, 3 * PADDED + at)) + (wp.int64(shared_int(base, 4 * PADDED + at))
+                                                                        << wp.int64(16))
+                    own = step(own, shared_int(base, at), shared_int(base, PADDED + at),
+                               shared_int(base, 2 * PADDED + at), y, near64)
+                else:
+                    counts[q] = shared_int(base, at)
+                    lags_in[q] = shared_int(base, PADDED + at)
+                    lags_out[q] = shared_int(base, 2 * PADDED + at)
+                    lows[q] = shared_int(base, 3 * PADDED + at)
+                    highs[q] = shared_int(base, 4 * PADDED + at)
+                    for w in range(5):
+                        set_shared_int(base, w * PADDED + at, 0)
+                    y = wp.int64(lows[q]) + (wp.int64(highs[q]) << wp.int64(16))
+                    own = step(own, counts[q], lags_in[q], lags_out[q], y, near64)
+            own_map = step_map(own[0], own[1], own[2], own[3])
+            # inclusive scan of the lanes' maps within the warp
+            inclusive = own_map
+            for round in range(SCAN_ROUNDS):
+                delta = 1 << round
+                below = step_map(shuffle_up(inclusive[0], delta), shuffle_up(inclusive[1], delta),
+                                 shuffle_up(inclusive[2], delta), shuffle_up(inclusive[3], delta))
+                if in_warp >= delta:
+                    inclusive = then_map(below, inclusive, wp.int64(delta * S))
+            before = step_map(shuffle_up(inclusive[0], 1), shuffle_up(inclusive[1], 1),
+                              shuffle_up(inclusive[2], 1), shuffle_up(inclusive[3], 1))
+            if in_warp == WARP - 1:
+                for q in range(4):
+                    set_shared_int64(shared, 4 * warp + q, inclusive[q])
+            barrier()
+            parity = 4 * WARPS + 4 * (chunk % 2)
+            state = state4(shared_int64(shared, parity), shared_int64(shared, parity + 1),
+                           shared_int64(shared, parity + 2), shared_int64(shared, parity + 3))
+            for w in range(WARPS):
+                if w < warp:
+                    state = apply_map(state, step_map(shared_int64(shared, 4 * w), shared_int64(shared, 4 * w + 1),
+                                                      shared_int64(shared, 4 * w + 2),
+                                                      shared_int64(shared, 4 * w + 3)), wp.int64(K_WARP))
+            if in_warp > 0:
+                state = apply_map(state, before, wp.int64(in_warp * K_LANE))
+            for q in range(S):
+                if wp.static(REREAD):
+                    at = slot(head, lane * S + q)
+                    y = wp.int64(shared_int(base, 3 * PADDED + at)) + (wp.int64(shared_int(base, 4 * PADDED + at))
+                                                                        << wp.int64(16))
+                    state = step(state, shared_int(base, at), shared_int(base, PADDED + at),
+                                 shared_int(base, 2 * PADDED + at), y, near64)
+                    for w in range(5):
+                        set_shared_int(base, w * PADDED + at, 0)
+                else:
+                    y = wp.int64(lows[q]) + (wp.int64(highs[q]) << wp.int64(16))
+                    state = step(state, counts[q], lags_in[q], lags_out[q], y, near64)
+                s = c0 - first + lane * S + q
+                if s < s_end:
+                    u_total = anchor_level + curvature * wp.float64(state[2]) + wp.float64(state[3]) * inverse_scale
+                    force[r, s] = k_spring * u_total - offset
+            if lane == BD - 1:
+                next_parity = 4 * WARPS + 4 * ((chunk + 1) % 2)
+                for q in range(4):
+                    set_shared_int64(shared, next_parity + q, state[q])
+            if wp.static(REREAD):
+                barrier()  # this chunk's bins cleared before the next chunk's events reach them
+            chunk += 1
+            head += T
+            if head >= RING:
+                head -= RING
+
+    return contact_force_stream
