@@ -1,13 +1,12 @@
 """The sweep's stream form on one CUDA device: force kernel alone at thesis scale (300 x 2^20,
-open, d0) for each stream layout, beside the edge kernel and the tiles form, each checked
-against the tiles; then the refinement and distance exponents of the default layout for each
-``--waves`` (blocks a launch aims at, per resident block slot: see ``STREAM_WAVES`` in
-``mdroll/ensemble/sweep.py``).
+open, d0) in its default layout and in others (``STREAM_LAYOUTS`` in
+``mdroll/ensemble/sweep.py``), beside the edge kernel and the tiles form, each checked against
+the tiles. The exponents: ``benchmarks/sweep_exponents.py``.
 
     python benchmarks/sweep_stream_tuning.py --out sweep_stream_H200.json
 
 Times: median of ``--repeats`` launches (``mdroll.bench.timed``, launch recorded outside the
-clock); exponents fitted as ``mdroll bench --full`` does, on its sizes (64 periodic lines).
+clock).
 """
 
 import argparse
@@ -17,15 +16,14 @@ import numpy as np
 
 import mdroll.ensemble.sweep as sweep
 from mdroll import Params, rough_lines
-from mdroll.bench import fit_exponent, force_time, timed
-from mdroll.bench.study import STUDIES
+from mdroll.bench import force_time, timed
 from mdroll.devices import resolve_device, to_warp
 from mdroll.ensemble.pipeline import H_BOUND_SIGMAS
 from mdroll.ensemble.prepare import prepare_lines
 from mdroll.provenance import environment
 
 #: (lanes, steps a lane, registers) tried at thesis scale besides the default choice
-LAYOUTS = ((128, 8, 80), (128, 8, 96), (64, 8, 80), (128, 4, 80), (256, 4, 80), (256, 2, 80))
+LAYOUTS = ((128, 8, 80), (128, 8, 128), (64, 8, 96), (256, 8, 96), (256, 4, 80), (128, 4, 96))
 
 
 def kernel_ms(prepared, p, device, repeats, form, layout=None, check=None):
@@ -48,12 +46,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--device", default="cuda:0")
     parser.add_argument("--repeats", type=int, default=7)
-    parser.add_argument("--waves", type=int, nargs="+", default=[sweep.STREAM_WAVES])
     parser.add_argument("--out", default="sweep_stream.json")
     args = parser.parse_args()
     device = resolve_device(args.device)
     p = Params(L=5.24288, n_real=300)
-    record = {"environment": environment(device), "thesis": {}, "exponents": {}}
+    record = {"environment": environment(device), "thesis": {}}
     record["thesis"]["edge_ms"] = force_time(p, "edge", p.n_real, device, args.repeats, "open")["force_s"] * 1e3
     lines = to_warp(rough_lines(p, 0, p.n_real, device=device), device)
     prepared = prepare_lines(lines, p, "sweep", "open", p.d0, device, h_max=H_BOUND_SIGMAS * p.h0)
@@ -66,15 +63,6 @@ def main() -> None:
         ms, error, _ = kernel_ms(prepared, p, device, args.repeats, "stream", layout, reference)
         record["thesis"]["x".join(map(str, layout))] = {"ms": ms, "max_abs_minus_tiles_over_F_N": error}
         print(f"stream {layout}: {ms:.3f} ms ({error:.1e} F_N)", flush=True)
-    del prepared, lines, reference
-    for waves in args.waves:
-        sweep.STREAM_WAVES = waves
-        for section, (sizes, _) in STUDIES["full"].sweeps(device).items():
-            points = [force_time(size, "sweep", 64, device, 5) for size in sizes]
-            exponent, stderr = fit_exponent([q["n"] for q in points], [q["force_s"] for q in points])
-            record["exponents"][f"{section}_waves{waves}"] = {"exponent": exponent, "stderr": stderr, "points": points}
-            print(f"waves {waves} {section}: p = {exponent:.3f} +- {stderr:.3f} ("
-                  + ", ".join(f"{q['n']}: {q['ns_per_step']:.4f}" for q in points) + " ns/step)", flush=True)
     with open(args.out, "w") as f:
         json.dump(record, f, indent=1)
 

@@ -36,17 +36,22 @@ def test_numpy_sweep_equals_numpy_direct_sum(H, h0):
 
 
 def test_reach_is_the_direct_sums_contact_decision(device):
-    """The kernels' reach M (float32 guess, float64 tests) equals NumPy's largest m with
+    """The kernels' reach M (float32 guess, float64 tests; the stream's guess from the
+    curvature's reciprocal and a rough square root) equals NumPy's largest m with
     ``h + d - kappa m^2 > 0``, at random levels and at levels on and next to ``kappa m^2``, where
     the last integer is decided by rounding."""
     import warp as wp
 
     from mdroll.kernels.common import reach_strict
+    from mdroll.kernels.sweep_stream import reach_guessed
 
     @wp.kernel
     def reaches(level: wp.array(dtype=wp.float64), curvature: wp.float64, out: wp.array(dtype=int)):
         i = wp.tid()
         out[i] = reach_strict(level[i], curvature)
+        guessed = reach_guessed(level[i], curvature, wp.float32(wp.float64(1.0) / curvature))
+        if guessed != out[i]:
+            out[i] = -2  # a disagreement shows as -2
 
     p = Params(dx=5e-6)
     kappa = p.dx**2 / p.R
@@ -166,23 +171,23 @@ def test_default_tiles_grow_with_the_band_and_their_blocks_with_the_tile():
 
 def test_stream_layout_keeps_the_multiprocessor_busy_as_the_band_grows(monkeypatch):
     """On CUDA the first layout of STREAM_LAYOUTS that keeps 16 warps resident (ring of chunk +
-    band bins in shared memory, registers): 128 lanes x 8 steps at the thesis's band, more
-    lanes and fewer steps a lane as the band grows; None beyond a block's shared memory. Each
+    band bins in shared memory, registers): 128 lanes x 8 steps from the thesis's band to
+    ~2000 springs, then 256 lanes; None beyond a block's shared memory. Each
     segment spans at least 16 bands and two chunks; STREAM_WAVES waves of blocks where the lines allow."""
     import mdroll.ensemble.sweep as sweep
 
     monkeypatch.setattr(sweep, "is_cuda", lambda device: True)
     monkeypatch.setattr(sweep, "warp", lambda: type("W", (), {"get_device": lambda device: type("D", (), {"sm_count": 132})}))
     thesis = stream_layout(47, 300, 2**20, "cuda:0")
-    assert (thesis["block_dim"], thesis["per_lane"], thesis["ring"], thesis["resident"]) == (128, 8, 2048, 5)
+    assert (thesis["block_dim"], thesis["per_lane"], thesis["ring"], thesis["resident"]) == (128, 8, 1280, 5)
     waves = sweep.STREAM_WAVES
     assert thesis["segment"] == -(-300 * 2**20 // (waves * 132 * 5) // 1024) * 1024
-    fine = stream_layout(2050, 64, 2**21, "cuda:0")
-    assert (fine["block_dim"], fine["per_lane"], fine["ring"]) == (256, 4, 4096)
-    finer = stream_layout(4100, 64, 2**22, "cuda:0")
-    assert (finer["block_dim"], finer["per_lane"], finer["ring"]) == (256, 2, 5120)
-    assert finer["segment"] == -(-max(64 * 2**22 // (waves * 132 * 2), 16 * 4100) // 512) * 512
-    assert stream_layout(12000, 64, 2**22, "cuda:0") is None  # 13 Ki bins: more than 227 KiB
+    fine = stream_layout(2050, 256, 2**21, "cuda:0")
+    assert (fine["block_dim"], fine["per_lane"], fine["ring"], fine["resident"]) == (128, 8, 3328, 4)
+    finer = stream_layout(4100, 256, 2**22, "cuda:0")
+    assert (finer["block_dim"], finer["per_lane"], finer["ring"], finer["resident"]) == (256, 8, 6400, 2)
+    assert finer["segment"] == -(-max(256 * 2**22 // (waves * 132 * 2), 16 * 4100) // 2048) * 2048
+    assert stream_layout(13000, 64, 2**22, "cuda:0") is None  # 15 Ki bins: more than 227 KiB
     monkeypatch.undo()
     assert stream_layout(47, 3, 1000, "cpu")["block_dim"] == 1
 

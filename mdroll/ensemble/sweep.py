@@ -83,7 +83,7 @@ def sweep_tile(band: int, device: str, tile_steps: int | None = None, block_dim:
 #: STREAM_MIN_WARPS warps resident on a multiprocessor (its ring of ``lanes x steps + band`` bins
 #: in shared memory, its registers), else the one that keeps the most: a wide band (a fine line)
 #: trades steps a lane for lanes.
-STREAM_LAYOUTS = ((128, 8, 80), (256, 4, 80), (256, 2, 80), (512, 1, 80))
+STREAM_LAYOUTS = ((128, 8, 96), (256, 8, 96), (256, 4, 80))
 STREAM_MIN_WARPS = 16
 #: What an H100/H200 multiprocessor holds: shared memory (bytes; a block at most 227 KiB),
 #: registers, lanes.
@@ -96,8 +96,19 @@ STREAM_CPU_PER_LANE = 16
 #: Blocks a launch aims at: this many per resident block slot of the device, so that the last
 #: wave's tail is short; a segment is never shorter than STREAM_SEGMENT_PER_BAND times the band
 #: (its anchor reads the band's 2 x band springs once) nor than two chunks.
-STREAM_WAVES = 8
+STREAM_WAVES = 4
 STREAM_SEGMENT_PER_BAND = 16
+
+
+def _resident(ring: int, lanes: int, registers: int) -> int:
+    """Blocks of ``lanes`` lanes at ``registers`` registers a lane and a ring of ``ring`` bins that
+    a multiprocessor holds at once."""
+    from ..kernels.sweep_stream import BIN_BYTES
+
+    shared = ring * BIN_BYTES + 1024
+    if shared > BLOCK_SHARED:
+        return 0
+    return int(min(SM_SHARED // shared, SM_REGISTERS // (lanes * registers), SM_LANES // lanes))
 
 
 def stream_layout(band: int, rows: int, steps: int, device: str, block_dim: int | None = None,
@@ -124,16 +135,15 @@ def stream_layout(band: int, rows: int, steps: int, device: str, block_dim: int 
             if (block_dim and lanes != block_dim) or (per_lane and steps_a_lane != per_lane):
                 continue
             ring = -(-(lanes * steps_a_lane + band + 1) // RING_UNIT) * RING_UNIT
-            shared = ring * BIN_BYTES + 1024
-            if shared > BLOCK_SHARED:
+            if ring * BIN_BYTES + 1024 > BLOCK_SHARED:
                 continue
-            resident = int(min(SM_SHARED // shared, SM_REGISTERS // (lanes * registers), SM_LANES // lanes))
+            resident = _resident(ring, lanes, registers)
+            candidate = {"block_dim": lanes, "per_lane": steps_a_lane, "max_registers": registers, "ring": ring,
+                         "resident": resident}
             if best is None or resident * lanes > best["resident"] * best["block_dim"]:
-                best = {"block_dim": lanes, "per_lane": steps_a_lane, "max_registers": registers, "ring": ring,
-                        "resident": resident}
+                best = candidate
             if resident * lanes >= 32 * STREAM_MIN_WARPS:
-                best = {"block_dim": lanes, "per_lane": steps_a_lane, "max_registers": registers, "ring": ring,
-                        "resident": resident}
+                best = candidate
                 break
         if best is None and block_dim and per_lane:  # a layout of the caller's own
             ring = -(-(block_dim * per_lane + band + 1) // RING_UNIT) * RING_UNIT
@@ -195,6 +205,8 @@ def sweep_command(prepared, params: Params, d: float, device: str, out=None, off
         if layout is None:
             raise ParameterError(f"the sweep's band of uncertain contact spans {band} springs a side, wider than the "
                                  f"stream form's ring allows: use form='sequential'")
+        if p.lines.strides[1] != 8 or force.strides[1] != 8:  # the kernel walks rows by address
+            raise ParameterError("the stream form needs rows of contiguous float64 heights and forces")
         kernel = stream_kernel(layout["block_dim"], layout["per_lane"], layout["ring"], layout["max_registers"])
         inputs = [p.lines, p.prefix, p.bounds, p.n_work, p.first, p.steps, layout["segment"], d, curvature,
                   params.k_spring, offset, force]

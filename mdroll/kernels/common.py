@@ -134,7 +134,15 @@ def reach_strict(level: wp.float64, curvature: wp.float64) -> int:
     """
     if level <= wp.float64(0.0):
         return -1
-    m = int(wp.sqrt(wp.float32(level) / wp.float32(curvature)))
+    return settle_reach(int(wp.sqrt(wp.float32(level) / wp.float32(curvature))), level, curvature)
+
+
+@wp.func
+def settle_reach(guess: int, level: wp.float64, curvature: wp.float64) -> int:
+    """The largest m >= 0 with ``curvature m^2 < level`` (level > 0) from a guess within one of
+    it: the float64 tests ``fl(fl(curvature m) m) < level`` of the direct sum (eq 10) move it by
+    at most one either way."""
+    m = guess
     if curvature * wp.float64(m) * wp.float64(m) >= level:
         m -= 1
     if curvature * wp.float64(m + 1) * wp.float64(m + 1) < level:

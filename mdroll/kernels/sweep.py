@@ -15,15 +15,19 @@ fixed origin c0, ``P1 = sum m`` and ``P2 = sum m^2``, since ``sum (i - c)^2 = P2
 for ``t = c - c0`` (exact integers). Each spring changes them twice: it enters at
 ``c = i - M_i`` and leaves after ``c = i + M_i``.
 
-Two forms of the same sweep, one per kind of device:
+Three forms of the same sweep:
 
-* **tiles** (:func:`sweep_kernel`, CUDA): the steps of a tile are the lanes of a block, which
-  scatter the events and scan them together (below);
+* **stream** (:mod:`mdroll.kernels.sweep_stream`, CUDA's default): a block sweeps a long
+  segment of a row chunk by chunk, carrying its totals and its pending events from chunk to
+  chunk, so that no chunk re-anchors and each spring is read once entering and once leaving;
+* **tiles** (:func:`sweep_kernel`, CUDA, the default before the stream): the steps of a tile
+  are the lanes of a block, which scatter the events and scan them together (below), each tile
+  from its own anchor;
 * **sequential** (:data:`contact_force_sequential`, the CPU, where Warp runs one lane a thread):
   each thread sweeps a chunk of consecutive steps in order, carrying the totals from step to
   step and the events pending for the next ``band`` steps in a ring (see its docstring).
 
-Both equal the direct sum to rounding; on an H200 the sequential form, one lane a chunk, took
+All equal the direct sum to rounding; on an H200 the sequential form, one lane a chunk, took
 9.5 ms against the tiles' 9.6 at thesis scale and lost more under refinement (its ring, ``band``
 slots a lane, leaves fewer lanes resident as the band grows), while on one CPU core it takes
 ~18-23 ns a step against the tiles' ~32 (docs/performance.md).

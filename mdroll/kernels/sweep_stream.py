@@ -43,17 +43,20 @@ import functools
 
 import warp as wp
 
-from .common import full_contact_sum, reach_strict
+from .common import full_contact_sum, reach_strict, settle_reach
+from .sweep import sync_block
 
 #: Events a bin can count of each kind: entries add 1 to the bin's count word, leavers 2^16.
 COUNT_SHIFT = 16
-#: The widest band the ring's int32 sums allow (a bin's entries, and its leavers, have distinct
-#: lags <= band, each kind's count stays below 2^16 and the low limbs' sum below 2^31).
-MAX_STREAM_BAND = 16383
-#: A chunk's ring needs T + band bins; it comes in multiples of RING_UNIT bins, each bin five
+#: The widest band the ring's int32 sums allow: a bin takes at most band + 1 entries and band + 1
+#: leavers (each kind has distinct lags <= band), so each kind's count stays below 2^16, the lag
+#: sum below band (band + 1) and the low limbs' sum, 2 (band + 1) (2^16 - 1), below 2^31.
+MAX_STREAM_BAND = 16382
+#: A chunk's ring needs T + band bins; it comes in multiples of RING_UNIT bins, each bin four
 #: int32 words, padded one word in 32.
-RING_UNIT = 1024
-BIN_BYTES = 5 * 4 * 33 / 32
+RING_UNIT = 256
+BIN_WORDS = 4
+BIN_BYTES = BIN_WORDS * 4 * 33 / 32
 
 
 @wp.func_native("""
@@ -77,6 +80,25 @@ def shared_int(base: wp.uint64, i: int) -> int:
 @wp.func_native("""((int*)base)[i] = value;""")
 def set_shared_int(base: wp.uint64, i: int, value: int):
     """``base[i] = value`` for an int32 in shared memory."""
+    ...
+
+
+@wp.func_native("""return (uint64_t)(((char*)a.data) + (size_t)r * (size_t)a.strides[0]);""")
+def row_address(a: wp.array2d(dtype=wp.float64), r: int) -> wp.uint64:
+    """The address of ``a[r, 0]`` (rows contiguous: the launcher checks)."""
+    ...
+
+
+@wp.func_native("""return ((const double*)base)[i];""")
+def load_float(base: wp.uint64, i: int) -> wp.float64:
+    """``base[i]`` for a float64 in global memory (one address computation less than Warp's
+    strided indexing a load)."""
+    ...
+
+
+@wp.func_native("""((double*)base)[i] = value;""")
+def store_float(base: wp.uint64, i: int, value: wp.float64):
+    """``base[i] = value`` for a float64 in global memory."""
     ...
 
 
@@ -140,18 +162,6 @@ def shuffle_xor_float(value: wp.float64, mask: int) -> wp.float64:
     ...
 
 
-@wp.func_native("""
-#if defined(__CUDA_ARCH__)
-__syncthreads();
-#else
-WP_TILE_SYNC();
-#endif
-""")
-def barrier():
-    """A block's barrier."""
-    ...
-
-
 #: An affine map of the state over k steps (k implicit): (a, b, c, y), see the module docstring.
 step_map = wp.types.vector(length=4, dtype=wp.int64)
 #: The state: (N, P, Z, Y).
@@ -173,33 +183,68 @@ def then_map(first: step_map, second: step_map, k_second: wp.int64) -> step_map:
 
 
 @wp.func
-def step(state: state4, counts: int, lag_in: int, lag_out: int, y: wp.int64, near: wp.int64) -> state4:
-    """One step: every offset drops by one, then a bin's events (counts packed as entries +
-    2^16 leavers; lag sums; fixed-point values, entries less leavers)."""
+def step(state: state4, counts: int, lags: int, y: wp.int64, near: int) -> state4:
+    """One step: every offset drops by one, then a bin's events: ``counts`` packs the entries and
+    2^16 times the leavers, ``lags`` sums their lags ``M - near``, y their fixed-point values.
+    An entry adds offset M, a leaver takes offset -(M + 1) away: both add ``near + lag`` to P,
+    a leaver 1 more."""
     n = state[0]
     p = state[1]
-    z = state[2] + wp.int64(2) * p - n
-    p = p - n
-    entering = wp.int64(counts & 0xFFFF)
-    leaving = wp.int64(counts >> COUNT_SHIFT)
-    lag_sum_out = wp.int64(lag_out)
-    # a leaver's offset -(M + 1) leaves P, and its value's - curvature (2 M + 1) leaves U (into Z)
-    z = z + wp.int64(2) * (near * leaving + lag_sum_out) + leaving
-    p = p + near * (entering + leaving) + leaving + wp.int64(lag_in) + lag_sum_out
-    return state4(n + entering - leaving, p, z, state[3] + y)
+    entering = counts & 0xFFFF
+    leaving = counts >> COUNT_SHIFT
+    moved = wp.int64(near) * wp.int64(entering + leaving) + wp.int64(leaving + lags)
+    return state4(n + wp.int64(entering - leaving), p - n + moved, state[2] + wp.int64(2) * p - n, state[3] + y)
+
+
+@wp.func_native("""
+double shifted = value * scale + 6755399441055744.0;  // + 1.5 2^52: the integer part lands in the low bits
+#if defined(__CUDA_ARCH__)
+long long bits = __double_as_longlong(shifted);
+#else
+long long bits;
+memcpy(&bits, &shifted, sizeof(bits));
+#endif
+return (bits & 0xFFFFFFFFFFFFFLL) - 2251799813685248LL;
+""")
+def fixed_value(value: wp.float64, scale: wp.float64) -> wp.int64:
+    """``value scale`` rounded to the nearest integer (ties to even; ``|value scale| < 2^51``): a
+    spring's value in the ring's fixed point, by the float64 addition of 1.5 2^52 that leaves
+    the integer in the low mantissa bits (a float64 to int64 conversion takes several times
+    longer on a GPU)."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+return x * rsqrtf(fmaxf(x, 1.0e-30f));
+#else
+return sqrtf(x);
+#endif
+""")
+def rough_sqrt(x: wp.float32) -> wp.float32:
+    """sqrt(x) within a few float32 ulps (CUDA: the hardware's reciprocal square root, without
+    the IEEE square root's slow path)."""
+    ...
 
 
 @wp.func
-def fixed_value(u: wp.float64, scale: wp.float64) -> wp.int64:
-    """``round(u scale)``: a spring's value in the ring's fixed point."""
-    return wp.int64(wp.round(u * scale))
+def reach_guessed(level: wp.float64, curvature: wp.float64, inverse_curvature: wp.float32) -> int:
+    """:func:`~mdroll.kernels.common.reach_strict` (the largest m >= 0 with ``curvature m^2 <
+    level``, -1 if level <= 0) from a float32 guess with the curvature's reciprocal
+    ``inverse_curvature`` (1/m) and a rough square root (relative error ~1e-6, so within 0.1
+    of the root for the offsets up to MAX_CLOSED_FORM_OFFSET), settled by the same float64
+    tests, which move it by at most one either way: no division and no slow path."""
+    if level <= wp.float64(0.0):
+        return -1
+    return settle_reach(int(rough_sqrt(wp.float32(level) * inverse_curvature)), level, curvature)
 
 
 @functools.cache
 def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int | None = None):
     """The stream kernel for blocks of ``block_dim`` lanes (a multiple of 32 on CUDA, 1 on the
-    CPU), ``per_lane`` steps a lane a chunk and a ring of ``ring`` bins (a power of two, at least
-    ``block_dim per_lane + band``). Launched by ``wp.launch_tiled`` over ``(R, segments)``."""
+    CPU), ``per_lane`` steps a lane a chunk and a ring of ``ring`` bins (a multiple of 32, at
+    least ``block_dim per_lane + band + 1``), compiled for at most ``max_registers`` registers a
+    lane. Launched by ``wp.launch_tiled`` over ``(R, segments)``."""
     BD = block_dim
     S = per_lane
     T = BD * S
@@ -211,7 +256,7 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
     WARPS = BD // WARP
     SCAN_ROUNDS = WARP.bit_length() - 1
     PADDED = RING + RING // 32  # one word of padding in 32: lanes reading S-strided bins meet no bank twice
-    WORDS = 5 * PADDED
+    WORDS = BIN_WORDS * PADDED
     ANCHOR = 4 * WARPS + 8
     SMALL = ANCHOR + 3 * WARPS  # int64 words: the warps' maps, the carried states (two), the anchor's parts
     K_LANE = S
@@ -239,19 +284,16 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
 
     @wp.func
     def add_event(base: wp.uint64, head: int, ahead: int, lag: int, value: wp.int64, leaving: int):
+        """A spring's event in the bin ``ahead`` steps past the chunk's first: its count, lag
+        and fixed-point value (two limbs, low 16 bits and the rest)."""
         at = slot(head, ahead)
-        low = wp.int32(value & wp.int64(0xFFFF))
-        high = wp.int32(value >> wp.int64(16))
         if leaving != 0:
             shared_add(base, at, 1 << COUNT_SHIFT)
-            shared_add(base, 2 * PADDED + at, lag)
-            shared_add(base, 3 * PADDED + at, -low)
-            shared_add(base, 4 * PADDED + at, -high)
         else:
             shared_add(base, at, 1)
-            shared_add(base, PADDED + at, lag)
-            shared_add(base, 3 * PADDED + at, low)
-            shared_add(base, 4 * PADDED + at, high)
+        shared_add(base, PADDED + at, lag)
+        shared_add(base, 2 * PADDED + at, wp.int32(value & wp.int64(0xFFFF)))
+        shared_add(base, 3 * PADDED + at, wp.int32(value >> wp.int64(16)))
 
     @wp.kernel(module="unique", enable_backward=False, cuda_max_registers=max_registers)
     def contact_force_stream(
@@ -278,7 +320,7 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
         outer = reach_strict(d + box[1], curvature)
         if outer < 0:  # no spring of the row ever touches
             for s in range(s_begin + lane, s_end, BD):
-                force[r, s] = -offset
+                store_float(row_address(force, r), s, -offset)
             return
         near = wp.max(core, 0)
         band = outer - near
@@ -288,17 +330,19 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
         while (1 << width) <= band + 1:
             width += 1
         bits = 47 - width
-        largest = curvature * wp.float64(2 * outer + 1)
-        scale = wp.float64(float(1 << 20)) * wp.float64(wp.int64(1) << wp.int64(bits - 21)) / largest
-        scale = scale * wp.float64(0.999)
-        inverse_scale = wp.float64(1.0) / scale
-        row = lines[r]
-        near64 = wp.int64(near)
+        # Y counts in units of curvature / unit: a leaver's - curvature (2 M + 1) is the exact
+        # integer unit (2 M + 1), so it leaves Y with what its entry added less that integer
+        unit = (wp.int64(1) << wp.int64(bits - 1)) / wp.int64(2 * outer + 1)
+        scale = wp.float64(unit) / curvature
+        inverse_scale = curvature / wp.float64(unit)
+        row = row_address(lines, r)
+        forces = row_address(force, r)
+        inverse_curvature = wp.float32(wp.float64(1.0) / curvature)
         memory = wp.tile_zeros(shape=WORDS, dtype=wp.int32, storage="shared")
         base = ring_address(memory)
         small = wp.tile_zeros(shape=SMALL, dtype=wp.int64, storage="shared")
         shared = small_address(small)
-        barrier()  # the zeroed ring before any lane adds to it
+        sync_block()  # the zeroed ring before any lane adds to it
         warp = lane / WARP
         in_warp = lane - warp * WARP
 
@@ -323,16 +367,17 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
                 m = -outer + j - right
             i = a + m
             if i >= 0 and i < n:
-                h = row[i]
+                h = load_float(row, i)
                 level_i = h + d
-                reach = reach_strict(level_i, curvature)
+                reach = reach_guessed(level_i, curvature, inverse_curvature)
                 if reach >= wp.abs(m):
                     count += wp.int64(1)
                     offsets += wp.int64(m)
                     level += level_i - curvature * wp.float64(m) * wp.float64(m)
                     if m < 0:
                         u = level_i - curvature * wp.float64(reach) * wp.float64(reach)
-                        add_event(base, 0, m + reach, reach - near, fixed_value(u, scale), 1)
+                        add_event(base, 0, m + reach, reach - near,
+                                  unit * wp.int64(2 * reach + 1) - fixed_value(u, scale), 1)
                 elif reach >= 0 and m > 0:
                     u = level_i - curvature * wp.float64(reach) * wp.float64(reach)
                     add_event(base, 0, m - reach - 1, reach - near, fixed_value(u, scale), 0)
@@ -346,7 +391,7 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
             set_shared_int64(shared, ANCHOR + 3 * warp, count)
             set_shared_int64(shared, ANCHOR + 3 * warp + 1, offsets)
             set_shared_float(shared, ANCHOR + 3 * warp + 2, level)
-        barrier()
+        sync_block()
         anchor = state4()
         anchor_level = wp.float64(0.0)
         for w in range(WARPS):
@@ -369,41 +414,39 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
                         i = c0 - near - 1 + q * BD + lane
                     loaded[q] = wp.float64(-1.0e300)
                     if i >= 0 and i < n:
-                        loaded[q] = row[i]
+                        loaded[q] = load_float(row, i)
                 for q in range(S):
                     level_i = loaded[q] + d
-                    reach = reach_strict(level_i, curvature)
+                    reach = reach_guessed(level_i, curvature, inverse_curvature)
                     if reach >= 0:
                         u = level_i - curvature * wp.float64(reach) * wp.float64(reach)
                         if side == 0:
                             add_event(base, head, outer + q * BD + lane - reach, reach - near, fixed_value(u, scale), 0)
                         else:
-                            add_event(base, head, q * BD + lane + reach - near, reach - near, fixed_value(u, scale), 1)
-            barrier()
+                            add_event(base, head, q * BD + lane + reach - near, reach - near,
+                                      unit * wp.int64(2 * reach + 1) - fixed_value(u, scale), 1)
+            sync_block()
             # 2. this lane's bins: read, clear, compose into one map
             counts = bin_map()
-            lags_in = bin_map()
-            lags_out = bin_map()
+            lags = bin_map()
             lows = bin_map()
             highs = bin_map()
             own = state4()
             for q in range(S):
                 at = slot(head, lane * S + q)
                 if wp.static(REREAD):
-                    y = wp.int64(shared_int(base, 3 * PADDED + at)) + (wp.int64(shared_int(base, 4 * PADDED + at))
+                    y = wp.int64(shared_int(base, 2 * PADDED + at)) + (wp.int64(shared_int(base, 3 * PADDED + at))
                                                                         << wp.int64(16))
-                    own = step(own, shared_int(base, at), shared_int(base, PADDED + at),
-                               shared_int(base, 2 * PADDED + at), y, near64)
+                    own = step(own, shared_int(base, at), shared_int(base, PADDED + at), y, near)
                 else:
                     counts[q] = shared_int(base, at)
-                    lags_in[q] = shared_int(base, PADDED + at)
-                    lags_out[q] = shared_int(base, 2 * PADDED + at)
-                    lows[q] = shared_int(base, 3 * PADDED + at)
-                    highs[q] = shared_int(base, 4 * PADDED + at)
-                    for w in range(5):
+                    lags[q] = shared_int(base, PADDED + at)
+                    lows[q] = shared_int(base, 2 * PADDED + at)
+                    highs[q] = shared_int(base, 3 * PADDED + at)
+                    for w in range(BIN_WORDS):
                         set_shared_int(base, w * PADDED + at, 0)
                     y = wp.int64(lows[q]) + (wp.int64(highs[q]) << wp.int64(16))
-                    own = step(own, counts[q], lags_in[q], lags_out[q], y, near64)
+                    own = step(own, counts[q], lags[q], y, near)
             own_map = step_map(own[0], own[1], own[2], own[3])
             # inclusive scan of the lanes' maps within the warp
             inclusive = own_map
@@ -418,7 +461,7 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
             if in_warp == WARP - 1:
                 for q in range(4):
                     set_shared_int64(shared, 4 * warp + q, inclusive[q])
-            barrier()
+            sync_block()
             parity = 4 * WARPS + 4 * (chunk % 2)
             state = state4(shared_int64(shared, parity), shared_int64(shared, parity + 1),
                            shared_int64(shared, parity + 2), shared_int64(shared, parity + 3))
@@ -432,25 +475,26 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
             for q in range(S):
                 if wp.static(REREAD):
                     at = slot(head, lane * S + q)
-                    y = wp.int64(shared_int(base, 3 * PADDED + at)) + (wp.int64(shared_int(base, 4 * PADDED + at))
+                    y = wp.int64(shared_int(base, 2 * PADDED + at)) + (wp.int64(shared_int(base, 3 * PADDED + at))
                                                                         << wp.int64(16))
-                    state = step(state, shared_int(base, at), shared_int(base, PADDED + at),
-                                 shared_int(base, 2 * PADDED + at), y, near64)
-                    for w in range(5):
+                    state = step(state, shared_int(base, at), shared_int(base, PADDED + at), y, near)
+                    for w in range(BIN_WORDS):
                         set_shared_int(base, w * PADDED + at, 0)
                 else:
                     y = wp.int64(lows[q]) + (wp.int64(highs[q]) << wp.int64(16))
-                    state = step(state, counts[q], lags_in[q], lags_out[q], y, near64)
+                    state = step(state, counts[q], lags[q], y, near)
                 s = c0 - first + lane * S + q
                 if s < s_end:
-                    u_total = anchor_level + curvature * wp.float64(state[2]) + wp.float64(state[3]) * inverse_scale
-                    force[r, s] = k_spring * u_total - offset
+                    u_total = wp.float64(0.0)  # no spring in contact: exactly no force
+                    if state[0] != wp.int64(0):
+                        u_total = anchor_level + curvature * wp.float64(state[2]) + wp.float64(state[3]) * inverse_scale
+                    store_float(forces, s, k_spring * u_total - offset)
             if lane == BD - 1:
                 next_parity = 4 * WARPS + 4 * ((chunk + 1) % 2)
                 for q in range(4):
                     set_shared_int64(shared, next_parity + q, state[q])
             if wp.static(REREAD):
-                barrier()  # this chunk's bins cleared before the next chunk's events reach them
+                sync_block()  # this chunk's bins cleared before the next chunk's events reach them
             chunk += 1
             head += T
             if head >= RING:
