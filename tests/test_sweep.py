@@ -169,6 +169,31 @@ def test_default_tiles_grow_with_the_band_and_their_blocks_with_the_tile():
     assert sweep_tile(44, "cuda:0", tile_steps=1024) == (1024, 128)
 
 
+def test_prefix_sums_only_for_the_forms_that_read_them(device):
+    """The sweep's prepared lines carry no prefix sums (the stream sums its anchors' cores spring
+    by spring, so the CUDA build is the bounds pass alone); the sequential and tiles forms and
+    the coupled step build them on first use, equal to NumPy's cumulative sums, and every form
+    gives the same force."""
+    from mdroll.ensemble.sweep import sweep_coupled
+
+    p = SMALL.replace(h0=2e-6)
+    lines = to_numpy(rough_lines(p, seed=7, realizations=2, device="cpu"))
+    prepared = prepare_lines(to_warp(lines, device), p, "sweep", "open", p.d0, device)
+    assert prepared.prefix is None
+    stream_command, stream = sweep_command(prepared, p, p.d0, device, form="stream")
+    stream_command.launch()
+    assert prepared.prefix is None
+    command, force = sweep_command(prepared, p, p.d0, device, form="sequential")
+    command.launch()
+    prefix = to_numpy(prepared.prefix)
+    np.testing.assert_allclose(prefix - prefix[:, :1], np.concatenate([np.zeros((2, 1)), np.cumsum(lines, axis=1)], axis=1),
+                               rtol=0, atol=1e-18)
+    assert np.max(np.abs(to_numpy(stream) - to_numpy(force))) <= 1e-12 * p.F_N
+    again = prepare_lines(to_warp(lines, device), p, "sweep", "open", p.d0, device)
+    sweep_coupled(again)
+    assert again.prefix is not None
+
+
 def test_stream_layout_keeps_the_multiprocessor_busy_as_the_band_grows(monkeypatch):
     """On CUDA the first layout of STREAM_LAYOUTS that keeps 16 warps resident (ring of chunk +
     band bins in shared memory, registers): 128 lanes x 8 steps from the thesis's band to

@@ -251,7 +251,10 @@ REGISTRY: dict[str, Algorithm] = {
             description="exact in O(n) at fixed d: running totals over the springs in contact, equal to direct to "
                         "rounding (coupled: the core in closed form and the bands spring by spring)",
             exact=True,
-            needs=frozenset({BOUNDS, PREFIX}),
+            # the row bounds only: its CUDA stream sums each segment's anchor spring by spring;
+            # the forms and the coupled step that read prefix sums build them on first use
+            # (ensemble/sweep.py), so that the CUDA build is the bounds pass alone
+            needs=frozenset({BOUNDS}),
             force_launch=sweep_launch,
             # d varies every step of the coupled dynamics, so no totals carry over there: its
             # step sums the bands directly (O(band) a step; DEFAULT_ALGORITHMS has the measurement)

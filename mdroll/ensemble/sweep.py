@@ -1,7 +1,8 @@
 """Host side of the sweep force (:mod:`mdroll.kernels.sweep`): its form, layout, band check, launch.
 
-The sweep is exact and O(n) at a fixed indentation d (physics.md section 4). It reads the lines,
-their prefix sums (eq 18) and the row bounds ``(min h, max h)`` of a :class:`PreparedLines`.
+The sweep is exact and O(n) at a fixed indentation d (physics.md section 4). It reads the lines
+and the row bounds ``(min h, max h)`` of a :class:`PreparedLines`, and, in its CPU and tiles
+forms and its coupled step, their prefix sums (eq 18), built on first use.
 On CUDA it runs as a stream: a block sweeps a long segment of a row chunk by chunk, its lanes
 scattering and scanning the events together and carrying the totals and the pending events
 from chunk to chunk (:mod:`mdroll.kernels.sweep_stream`); on the CPU, where Warp runs one lane a
@@ -166,8 +167,9 @@ def sweep_command(prepared, params: Params, d: float, device: str, out=None, off
     """The sweep's force launch, recorded (``wp.Launch``; run with ``.launch()``), and the
     (R, steps) array it writes: ``F - offset`` (N) at indentation d (m) for every step.
 
-    ``prepared`` needs ``lines``, ``prefix``, ``bounds``, ``h_low`` and ``h_top`` (see
-    :func:`mdroll.ensemble.prepare.prepare_lines`). ``form`` (:data:`FORMS`) picks the kernel,
+    ``prepared`` needs ``lines``, ``bounds``, ``h_low`` and ``h_top`` (see
+    :func:`mdroll.ensemble.prepare.prepare_lines`); the forms that read prefix sums build them
+    into it on first use. ``form`` (:data:`FORMS`) picks the kernel,
     by default :data:`DEFAULT_FORM` of the device's kind; for the stream ``block_dim``,
     ``per_lane`` and ``segment`` override the layout of :func:`stream_layout`; for the tiles
     ``tile_steps`` and ``block_dim`` override the defaults of :func:`sweep_tile` and ``loads``
@@ -208,11 +210,14 @@ def sweep_command(prepared, params: Params, d: float, device: str, out=None, off
         if p.lines.strides[1] != 8 or force.strides[1] != 8:  # the kernel walks rows by address
             raise ParameterError("the stream form needs rows of contiguous float64 heights and forces")
         kernel = stream_kernel(layout["block_dim"], layout["per_lane"], layout["ring"], layout["max_registers"])
-        inputs = [p.lines, p.prefix, p.bounds, p.n_work, p.first, p.steps, layout["segment"], d, curvature,
+        inputs = [p.lines, p.bounds, p.n_work, p.first, p.steps, layout["segment"], d, curvature,
                   params.k_spring, offset, force]
         command = wp.launch_tiled(kernel, dim=(rows, -(-p.steps // layout["segment"])), inputs=inputs,
                                   block_dim=layout["block_dim"], device=device, record_cmd=True)
         return command, force
+    from .prepare import ensure_prefix_sums  # (prepare imports the registry, which imports this)
+
+    ensure_prefix_sums(p, device)  # the anchors' cores in closed form (eq 18-20)
     if form == "sequential":
         chunk = chunk or max(SEQUENTIAL_CHUNK, 1 << (SEQUENTIAL_CHUNK_PER_BAND * band - 1).bit_length())
         chunks = -(-p.steps // chunk)
@@ -246,7 +251,9 @@ def sweep_coupled(prepared):
     kernel :data:`~mdroll.kernels.sweep.coupled_sweep` and its
     :class:`~mdroll.kernels.sweep.SweepLines` from prepared lines."""
     from ..kernels.sweep import SweepLines, coupled_sweep
+    from .prepare import ensure_prefix_sums
 
+    ensure_prefix_sums(prepared, str(prepared.lines.device))
     lines = SweepLines()
     lines.h, lines.prefix, lines.bounds, lines.n = prepared.lines, prepared.prefix, prepared.bounds, prepared.n_work
     return coupled_sweep, lines

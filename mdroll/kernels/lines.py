@@ -18,6 +18,8 @@ MIX_MULTIPLIER_2 = wp.constant(wp.uint64(0x94D049BB133111EB))
 #: 1024 / 2048 / 4096 (more threads, more partials for each row's one thread to combine).
 BOUNDS_THREADS = 512
 BOUNDS_UNROLL = 8
+#: Partials a thread combines in the middle stage of the bounds reduction (prepare.py).
+BOUNDS_GROUP = 32
 
 
 @wp.func

@@ -34,16 +34,16 @@ composes their transitions into one affine map of the state (``N -> N + a``, ``P
 the warps' totals go through shared memory (one barrier), and each lane applies the chunk's
 incoming state, the warps before it and the lanes before it, then steps through its S bins
 writing ``F - offset``. The last lane leaves the chunk's outgoing state for the next chunk.
-The segment starts from an anchor at ``a = c0 - 1``: its core in closed form (prefix sums, eq 18)
-and its bands spring by spring; band springs that enter or leave later put their events in the
-ring.
+The segment starts from an anchor at ``a = c0 - 1``: its core and its bands spring by spring
+(no prefix sums: the CUDA build is then the row bounds alone); band springs that enter or leave
+later put their events in the ring.
 """
 
 import functools
 
 import warp as wp
 
-from .common import full_contact_sum, reach_strict, settle_reach
+from .common import reach_strict, settle_reach
 from .sweep import sync_block
 
 #: Events a bin can count of each kind: entries add 1 to the bin's count word, leavers 2^16.
@@ -298,7 +298,6 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
     @wp.kernel(module="unique", enable_backward=False, cuda_max_registers=max_registers)
     def contact_force_stream(
         lines: wp.array2d(dtype=wp.float64),
-        prefix: wp.array2d(dtype=wp.float64),
         bounds: wp.array(dtype=wp.vec2d),
         n: int,
         first: int,
@@ -346,19 +345,20 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
         warp = lane / WARP
         in_warp = lane - warp * WARP
 
-        # anchor at a = c0 - 1: the core |m| <= core in closed form, the bands spring by spring;
-        # band springs that enter (right) or leave (left) later put their events in the ring
+        # anchor at a = c0 - 1: the core |m| <= core (all in contact) and the bands, spring by
+        # spring (the core is ~2 outer springs, a few % of a segment's reads); band springs
+        # that enter (right) or leave (left) later put their events in the ring
         a = first + s_begin - 1
         count = wp.int64(0)
         offsets = wp.int64(0)
         level = wp.float64(0.0)
-        if core >= 0 and lane == 0:
+        if core >= 0:
             lo = wp.max(a - core, 0)
-            hi = wp.min(a + core + 1, n)
-            if hi > lo:
-                count = wp.int64(hi - lo)
-                offsets = wp.int64((lo - a + hi - 1 - a) * (hi - lo) // 2)
-                level = full_contact_sum(prefix, r, lo, hi, a, d, curvature)
+            for i in range(lo + lane, wp.min(a + core + 1, n), BD):
+                m = i - a
+                count += wp.int64(1)
+                offsets += wp.int64(m)
+                level += load_float(row, i) + d - curvature * wp.float64(m) * wp.float64(m)
         right = outer - core  # m = core + 1 .. outer
         left = outer - near  # m = -outer .. -near - 1
         for j in range(lane, right + left, BD):
