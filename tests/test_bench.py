@@ -24,6 +24,11 @@ def test_memory_per_realization_is_affine_in_n():
     assert (m4 - m2) / (m2 - m1) == pytest.approx(2.0, rel=0.02)
     # at least the line, prefix sums, force and acceleration: 4 float64 per point
     assert (m2 - m1) >= 4 * 8 * (Params(L=0.2).n_points - Params(L=0.1).n_points)
+    # the sweep's CPU form builds its prefix sums with its force launch: counted like edge's,
+    # whose prepared lines carry them (and the sweep's row bounds on top)
+    p = Params(L=0.2)
+    sweep, edge = (bench.memory_per_realization(p, algorithm, "cpu") for algorithm in ("sweep", "edge"))
+    assert edge <= sweep <= edge + 64
 
 
 def test_tiny_study_through_the_cli(tmp_path, monkeypatch, device):

@@ -172,9 +172,11 @@ def compile_time(device: str) -> float:
 
 def memory_per_realization(params: Params, algorithm: str, device: str) -> int:
     """Bytes of the device arrays one realization occupies in a batch (lines, prefix sums, tree,
-    bounds, force, acceleration, two half spectra), counted from the arrays themselves."""
+    bounds, force, acceleration, two half spectra), counted from the arrays themselves, after its
+    force launch is recorded (a form may build its prefix sums there: the sweep's on the CPU)."""
     lines = to_warp(rough_lines(params, 0, 1, device=device), device)
     prepared = prepare_lines(lines, params, algorithm, "open", params.d0, device, h_max=H_BOUND_SIGMAS * params.h0)
+    force_command(prepared, params, algorithm, params.d0, device)
     arrays = [prepared.lines, prepared.bounds, prepared.prefix, prepared.tree]
     total = sum(a.capacity for a in arrays if a is not None) + (0 if prepared.lines is lines else lines.capacity)
     force_bytes = 8 * prepared.steps
