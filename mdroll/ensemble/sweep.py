@@ -101,14 +101,19 @@ STREAM_WAVES = 4
 STREAM_SEGMENT_PER_BAND = 16
 
 
-def _resident(ring: int, lanes: int, registers: int) -> int:
-    """Blocks of ``lanes`` lanes at ``registers`` registers a lane and a ring of ``ring`` bins that
-    a multiprocessor holds at once."""
+def _ring(chunk: int, band: int, unit: int) -> tuple[int, int]:
+    """The stream's ring for chunks of ``chunk`` steps and a band of ``band`` springs (``chunk +
+    band + 1`` bins, rounded up to ``unit``) and the shared memory its block takes (bytes: the
+    bins and ~1 KiB of the warps' and the anchor's totals)."""
     from ..kernels.sweep_stream import BIN_BYTES
 
-    shared = ring * BIN_BYTES + 1024
-    if shared > BLOCK_SHARED:
-        return 0
+    ring = -(-(chunk + band + 1) // unit) * unit
+    return ring, ring * BIN_BYTES + 1024
+
+
+def _resident(shared: float, lanes: int, registers: int) -> int:
+    """Blocks of ``lanes`` lanes at ``registers`` registers a lane and ``shared`` bytes of shared
+    memory that a multiprocessor holds at once."""
     return int(min(SM_SHARED // shared, SM_REGISTERS // (lanes * registers), SM_LANES // lanes))
 
 
@@ -118,15 +123,15 @@ def stream_layout(band: int, rows: int, steps: int, device: str, block_dim: int 
     ``{"block_dim", "per_lane", "max_registers", "ring", "segment"}``, or None where no ring
     fits a block's shared memory (or the band passes MAX_STREAM_BAND). ``block_dim`` and
     ``per_lane`` pick a layout, ``segment`` the steps a block."""
-    from ..kernels.sweep_stream import BIN_BYTES, MAX_STREAM_BAND, RING_UNIT
+    from ..kernels.sweep_stream import MAX_STREAM_BAND, RING_UNIT
 
     if band > MAX_STREAM_BAND:
         return None
     wp = warp()
     if not is_cuda(device):
         chunk = per_lane or STREAM_CPU_PER_LANE
-        ring = -(-(chunk + band + 1) // 32) * 32
-        if ring * BIN_BYTES > BLOCK_SHARED:
+        ring, shared = _ring(chunk, band, 32)
+        if shared > BLOCK_SHARED:
             return None
         layout = {"block_dim": 1, "per_lane": chunk, "max_registers": None, "ring": ring, "resident": 1}
         slots = 1
@@ -135,10 +140,10 @@ def stream_layout(band: int, rows: int, steps: int, device: str, block_dim: int 
         for lanes, steps_a_lane, registers in STREAM_LAYOUTS:
             if (block_dim and lanes != block_dim) or (per_lane and steps_a_lane != per_lane):
                 continue
-            ring = -(-(lanes * steps_a_lane + band + 1) // RING_UNIT) * RING_UNIT
-            if ring * BIN_BYTES + 1024 > BLOCK_SHARED:
+            ring, shared = _ring(lanes * steps_a_lane, band, RING_UNIT)
+            if shared > BLOCK_SHARED:
                 continue
-            resident = _resident(ring, lanes, registers)
+            resident = _resident(shared, lanes, registers)
             candidate = {"block_dim": lanes, "per_lane": steps_a_lane, "max_registers": registers, "ring": ring,
                          "resident": resident}
             if best is None or resident * lanes > best["resident"] * best["block_dim"]:
@@ -147,8 +152,10 @@ def stream_layout(band: int, rows: int, steps: int, device: str, block_dim: int 
                 best = candidate
                 break
         if best is None and block_dim and per_lane:  # a layout of the caller's own
-            ring = -(-(block_dim * per_lane + band + 1) // RING_UNIT) * RING_UNIT
-            best = {"block_dim": block_dim, "per_lane": per_lane, "max_registers": None, "ring": ring, "resident": 1}
+            ring, shared = _ring(block_dim * per_lane, band, RING_UNIT)
+            if shared <= BLOCK_SHARED:
+                best = {"block_dim": block_dim, "per_lane": per_lane, "max_registers": None, "ring": ring,
+                        "resident": 1}
         if best is None:
             return None
         layout = best

@@ -11,9 +11,10 @@ c every offset drops by one: ``U += curvature (2 P - N)``, ``P -= N`` (exact int
 springs that enter at c (offset +M, value ``u_i = h_i + d - curvature M_i^2 > 0``) join, and those
 whose last step was c - 1 (offset -M - 1 after the shift, value ``u_i - curvature (2 M_i + 1)``)
 leave. U is kept as ``U_anchor + curvature Z + Y / scale`` with two exact int64 totals: Z sums
-the shifts' ``2 P - N`` and the leavers' ``2 M + 1``, Y the fixed-point values ``round(u_i
-scale)``: a spring leaves with the very integer it entered with, so no rounding accumulates
-along the segment (a member's error is at most ``0.5 / scale``, below 1e-13 F_N for any band).
+the shifts' ``2 P - N``, Y the springs' values in fixed point, ``scale = unit / curvature`` for
+an integer unit: a spring enters with ``round(u_i scale)`` and leaves with ``unit (2 M_i + 1) -
+round(u_i scale)``, its value then to the very integer, so no rounding accumulates along the
+segment (a member's error is at most ``0.5 / scale``, below 1e-13 F_N for any band).
 
 Events: a spring enters at ``i - M_i`` and leaves after ``i + M_i``. With ``near = max(core, 0)``
 (the certain core, :func:`~mdroll.kernels.common.reach_strict` of ``d + min h``) and ``outer``
@@ -22,18 +23,20 @@ Events: a spring enters at ``i - M_i`` and leaves after ``i + M_i``. With ``near
 at a step in ``[c0 + j, c0 + j + band]``, ``band = outer - near``. So each spring is read once
 entering and once leaving (the second read ~2 outer springs later, an L1/L2 hit at the thesis's
 sizes), and the events wait in a ring of ``RING >= T + band`` bins in shared memory. A bin holds
-five int32 sums: the counts (entries + 2^16 leavers), the entries' and the leavers' lags
-``M - near`` (distinct within a bin, so each sum stays below band (band + 1) / 2), and the fixed
-values in a 16-bit low limb and a signed high limb (``scale`` sized from the band so that no
-limb sum passes 2^31).
+four int32 sums: the counts (entries + 2^16 leavers), the lags ``M - near`` of both kinds (a
+kind's lags are distinct within a bin, so the sum stays below band (band + 1)), and the values
+in a 16-bit low limb and a high limb (``unit`` sized from the band so that no limb sum passes
+2^31).
 
 Chunk: (1) each lane loads its S entering and S leaving springs and adds their events to the
-ring (shared-memory int32 atomics); barrier. (2) each lane reads and clears its S bins and
-composes their transitions into one affine map of the state (``N -> N + a``, ``P -> P - k N + b``,
+ring (shared-memory int32 atomics); barrier. (2) each lane reads its S bins and composes their
+transitions into one affine map of the state (``N -> N + a``, ``P -> P - k N + b``,
 ``Z -> Z + 2 k P - k^2 N + c``, ``Y -> Y + y`` over k steps): warp shuffles scan the lanes' maps,
 the warps' totals go through shared memory (one barrier), and each lane applies the chunk's
 incoming state, the warps before it and the lanes before it, then steps through its S bins
-writing ``F - offset``. The last lane leaves the chunk's outgoing state for the next chunk.
+writing ``F - offset`` and clearing the bins (from 8 steps a lane the bins are read again from
+shared memory there, and a barrier closes the chunk; below, kept in registers from the first
+read). The last lane leaves the chunk's outgoing state for the next chunk.
 The segment starts from an anchor at ``a = c0 - 1``: its core and its bands spring by spring
 (no prefix sums: the CUDA build is then the row bounds alone); band springs that enter or leave
 later put their events in the ring.
@@ -283,17 +286,33 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
         return position + (position >> 5)
 
     @wp.func
-    def add_event(base: wp.uint64, head: int, ahead: int, lag: int, value: wp.int64, leaving: int):
-        """A spring's event in the bin ``ahead`` steps past the chunk's first: its count, lag
-        and fixed-point value (two limbs, low 16 bits and the rest)."""
+    def add_event(base: wp.uint64, head: int, ahead: int, level: wp.float64, reach: int, near: int,
+                  curvature: wp.float64, scale: wp.float64, unit: wp.int64, leaving: int):
+        """The event of a spring of level ``h + d`` (m) and reach M in the bin ``ahead`` steps
+        past the chunk's first: its count, its lag ``M - near`` and its value, ``round(u scale)``
+        entering, ``unit (2 M + 1) - round(u scale)`` leaving (``u = level - curvature M^2``), in
+        two limbs (low 16 bits and the rest)."""
         at = slot(head, ahead)
+        value = fixed_value(level - curvature * wp.float64(reach) * wp.float64(reach), scale)
         if leaving != 0:
+            value = unit * wp.int64(2 * reach + 1) - value
             shared_add(base, at, 1 << COUNT_SHIFT)
         else:
             shared_add(base, at, 1)
-        shared_add(base, PADDED + at, lag)
+        shared_add(base, PADDED + at, reach - near)
         shared_add(base, 2 * PADDED + at, wp.int32(value & wp.int64(0xFFFF)))
         shared_add(base, 3 * PADDED + at, wp.int32(value >> wp.int64(16)))
+
+    @wp.func
+    def limbs(low: int, high: int) -> wp.int64:
+        """A bin's values from its two limbs."""
+        return wp.int64(low) + (wp.int64(high) << wp.int64(16))
+
+    @wp.func
+    def step_bin(state: state4, base: wp.uint64, at: int, near: int) -> state4:
+        """:func:`step` with the events of the bin at ``at``, read from shared memory."""
+        return step(state, shared_int(base, at), shared_int(base, PADDED + at),
+                    limbs(shared_int(base, 2 * PADDED + at), shared_int(base, 3 * PADDED + at)), near)
 
     @wp.kernel(module="unique", enable_backward=False, cuda_max_registers=max_registers)
     def contact_force_stream(
@@ -317,14 +336,16 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
         box = bounds[r]
         core = reach_strict(d + box[0], curvature)
         outer = reach_strict(d + box[1], curvature)
+        forces = row_address(force, r)
         if outer < 0:  # no spring of the row ever touches
             for s in range(s_begin + lane, s_end, BD):
-                store_float(row_address(force, r), s, -offset)
+                store_float(forces, s, -offset)
             return
         near = wp.max(core, 0)
         band = outer - near
-        # fixed point: |value| <= curvature (2 outer + 1); a bin sums up to band + 1 values of each
-        # sign, so the high limbs (value >> 16) keep below 2^31 with 2^(bits - 1) the largest value
+        # fixed point: every value lies in [0, curvature (2 outer + 1)] (to a unit), 2^(bits - 1)
+        # at most, and a bin sums up to 2 (band + 1) of them: its high limbs (value >> 16) stay
+        # below 2^31
         width = int(1)
         while (1 << width) <= band + 1:
             width += 1
@@ -335,7 +356,6 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
         scale = wp.float64(unit) / curvature
         inverse_scale = curvature / wp.float64(unit)
         row = row_address(lines, r)
-        forces = row_address(force, r)
         inverse_curvature = wp.float32(wp.float64(1.0) / curvature)
         memory = wp.tile_zeros(shape=WORDS, dtype=wp.int32, storage="shared")
         base = ring_address(memory)
@@ -375,12 +395,9 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
                     offsets += wp.int64(m)
                     level += level_i - curvature * wp.float64(m) * wp.float64(m)
                     if m < 0:
-                        u = level_i - curvature * wp.float64(reach) * wp.float64(reach)
-                        add_event(base, 0, m + reach, reach - near,
-                                  unit * wp.int64(2 * reach + 1) - fixed_value(u, scale), 1)
+                        add_event(base, 0, m + reach, level_i, reach, near, curvature, scale, unit, 1)
                 elif reach >= 0 and m > 0:
-                    u = level_i - curvature * wp.float64(reach) * wp.float64(reach)
-                    add_event(base, 0, m - reach - 1, reach - near, fixed_value(u, scale), 0)
+                    add_event(base, 0, m - reach - 1, level_i, reach, near, curvature, scale, unit, 0)
         # the anchor's parts summed over the block: the warp's by shuffles, the warps' in order
         for round in range(SCAN_ROUNDS):
             mask = 1 << round
@@ -419,12 +436,12 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
                     level_i = loaded[q] + d
                     reach = reach_guessed(level_i, curvature, inverse_curvature)
                     if reach >= 0:
-                        u = level_i - curvature * wp.float64(reach) * wp.float64(reach)
                         if side == 0:
-                            add_event(base, head, outer + q * BD + lane - reach, reach - near, fixed_value(u, scale), 0)
+                            add_event(base, head, outer + q * BD + lane - reach, level_i, reach, near, curvature,
+                                      scale, unit, 0)
                         else:
-                            add_event(base, head, q * BD + lane + reach - near, reach - near,
-                                      unit * wp.int64(2 * reach + 1) - fixed_value(u, scale), 1)
+                            add_event(base, head, q * BD + lane + reach - near, level_i, reach, near, curvature,
+                                      scale, unit, 1)
             sync_block()
             # 2. this lane's bins: read, clear, compose into one map
             counts = bin_map()
@@ -435,9 +452,7 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
             for q in range(S):
                 at = slot(head, lane * S + q)
                 if wp.static(REREAD):
-                    y = wp.int64(shared_int(base, 2 * PADDED + at)) + (wp.int64(shared_int(base, 3 * PADDED + at))
-                                                                        << wp.int64(16))
-                    own = step(own, shared_int(base, at), shared_int(base, PADDED + at), y, near)
+                    own = step_bin(own, base, at, near)
                 else:
                     counts[q] = shared_int(base, at)
                     lags[q] = shared_int(base, PADDED + at)
@@ -445,8 +460,7 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
                     highs[q] = shared_int(base, 3 * PADDED + at)
                     for w in range(BIN_WORDS):
                         set_shared_int(base, w * PADDED + at, 0)
-                    y = wp.int64(lows[q]) + (wp.int64(highs[q]) << wp.int64(16))
-                    own = step(own, counts[q], lags[q], y, near)
+                    own = step(own, counts[q], lags[q], limbs(lows[q], highs[q]), near)
             own_map = step_map(own[0], own[1], own[2], own[3])
             # inclusive scan of the lanes' maps within the warp
             inclusive = own_map
@@ -475,14 +489,11 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
             for q in range(S):
                 if wp.static(REREAD):
                     at = slot(head, lane * S + q)
-                    y = wp.int64(shared_int(base, 2 * PADDED + at)) + (wp.int64(shared_int(base, 3 * PADDED + at))
-                                                                        << wp.int64(16))
-                    state = step(state, shared_int(base, at), shared_int(base, PADDED + at), y, near)
+                    state = step_bin(state, base, at, near)
                     for w in range(BIN_WORDS):
                         set_shared_int(base, w * PADDED + at, 0)
                 else:
-                    y = wp.int64(lows[q]) + (wp.int64(highs[q]) << wp.int64(16))
-                    state = step(state, counts[q], lags[q], y, near)
+                    state = step(state, counts[q], lags[q], limbs(lows[q], highs[q]), near)
                 s = c0 - first + lane * S + q
                 if s < s_end:
                     u_total = wp.float64(0.0)  # no spring in contact: exactly no force
