@@ -241,6 +241,21 @@ def test_window_beyond_the_exact_closed_forms_is_refused(algorithm):
     assert contact_force(lines, p, "edge").shape[0] == 1
 
 
+@pytest.mark.parametrize("threads", [1, 7, 64, 512])
+def test_row_bounds_against_numpy(kernel_device, threads):
+    """The bounds pass with ``threads`` a row on every device (CUDA takes 512): strided partials
+    with 8 loads in flight a thread (rows of 5003 springs, so that threads of 64 and fewer loop
+    over their unrolled body and then a remainder), combined in groups of 32 where they divide
+    evenly, then per row: numpy's min and max, bit for bit."""
+    import warp as wp
+
+    from mdroll.ensemble.prepare import _row_bounds
+
+    host = np.random.default_rng(3).normal(size=(3, 5003))
+    bounds = _row_bounds(wp.array(host, dtype=wp.float64, device=kernel_device), kernel_device, threads)
+    np.testing.assert_array_equal(bounds.numpy(), np.stack([host.min(axis=1), host.max(axis=1)], axis=1))
+
+
 @pytest.mark.parametrize("boundary", ["open", "periodic"])
 @pytest.mark.parametrize("h_max", [None, 6 * SMALL.h0])
 def test_prepared_bounds_and_prefix_sums_against_numpy(kernel_device, boundary, h_max):

@@ -124,12 +124,17 @@ def _batch_bounds(bounds) -> tuple[float, float]:
     return float(host[:, 0].min()), float(host[:, 1].max())
 
 
-def _row_bounds(lines, device):
+def _row_bounds(lines, device, threads: int | None = None):
+    """``(min h, max h)`` of each row, a (R,) ``vec2d`` array: ``threads`` a row (default
+    BOUNDS_THREADS on CUDA, 1 on the CPU, where Warp runs a launch's threads one after another)
+    take strided partials, combined in groups of BOUNDS_GROUP where they divide evenly, then per
+    row."""
     from ..kernels.lines import BOUNDS_GROUP, BOUNDS_THREADS, row_min_max, strided_min_max
 
     wp = warp()
     rows, n = lines.shape
-    threads = min(BOUNDS_THREADS, n) if is_cuda(device) else 1
+    if threads is None:
+        threads = min(BOUNDS_THREADS, n) if is_cuda(device) else 1
     partial = wp.empty((rows, threads), dtype=wp.vec2d, device=device)
     bounds = wp.empty(rows, dtype=wp.vec2d, device=device)
     wp.launch(strided_min_max, dim=(rows, threads), inputs=[lines, n, threads, partial], device=device)
