@@ -251,8 +251,9 @@ def test_coupled_step_equals_the_direct_sum_where_the_wheel_leaves_the_rail(devi
 def test_band_beyond_the_tiles_int32_sums_runs_sequentially(device):
     """A band of uncertain contact wider than MAX_BAND springs (a spring below the wheel's reach
     at every position makes the whole window uncertain) runs in the sequential form, equal to
-    the tree; the tiles asked for there, or a form that does not exist, are refused with one
-    clear line, before the kernel runs."""
+    the tree; the tiles or the stream asked for there, a form that does not exist, or a stream
+    asked to write into a strided ``out``, are refused with one clear line, before the kernel
+    runs."""
     from mdroll import ParameterError
     from mdroll.kernels.sweep import MAX_BAND
 
@@ -266,5 +267,11 @@ def test_band_beyond_the_tiles_int32_sums_runs_sequentially(device):
         _sweep(lines, p, "open", p.d0, device, form="tiles")
     with pytest.raises(ParameterError, match="the stream form's ring allows: use form='sequential'"):
         _sweep(lines, p, "open", p.d0, device, form="stream")
+    prepared = prepare_lines(to_warp(np.zeros((1, SMALL.n_points)), device), SMALL, "sweep", "periodic", SMALL.d0,
+                             device)
+    strided = to_warp(np.zeros((1, 2 * prepared.steps)), device)[:, ::2]
+    with pytest.raises(ParameterError, match="^out: the sweep's stream form needs rows of contiguous float64 values, "
+                                             "not 16 bytes apart$"):
+        sweep_command(prepared, SMALL, SMALL.d0, device, out=strided, form="stream")
     with pytest.raises(ParameterError, match="form = 'rows': the sweep's forms are 'stream', 'tiles', 'sequential'"):
         _sweep(lines, p, "open", p.d0, device, form="rows")

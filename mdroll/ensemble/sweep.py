@@ -214,8 +214,10 @@ def sweep_command(prepared, params: Params, d: float, device: str, out=None, off
         if layout is None:
             raise ParameterError(f"the sweep's band of uncertain contact spans {band} springs a side, wider than the "
                                  f"stream form's ring allows: use form='sequential'")
-        if p.lines.strides[1] != 8 or force.strides[1] != 8:  # the kernel walks rows by address
-            raise ParameterError("the stream form needs rows of contiguous float64 heights and forces")
+        for name, array in (("lines", p.lines), ("out", force)):  # the kernel walks rows by address
+            if array.strides[1] != 8:
+                raise ParameterError(f"{name}: the sweep's stream form needs rows of contiguous float64 values, "
+                                     f"not {array.strides[1]} bytes apart")
         kernel = stream_kernel(layout["block_dim"], layout["per_lane"], layout["ring"], layout["max_registers"])
         inputs = [p.lines, p.bounds, p.n_work, p.first, p.steps, layout["segment"], d, curvature,
                   params.k_spring, offset, force]
