@@ -1,6 +1,6 @@
 """The sweep's stream form on one CUDA device: force kernel alone at thesis scale (300 x 2^20,
 open, d0) in its default layout and in others (``STREAM_LAYOUTS`` in
-``mdroll/ensemble/sweep.py``), beside the edge kernel and the tiles form, each checked against
+``mdroll/ensemble/sweep.py``, each with and without the delay line), beside the edge kernel and the tiles form, each checked against
 the tiles. The exponents: ``benchmarks/sweep_exponents.py``.
 
     python benchmarks/sweep_stream_tuning.py --out sweep_stream_H200.json
@@ -22,17 +22,18 @@ from mdroll.ensemble.pipeline import H_BOUND_SIGMAS
 from mdroll.ensemble.prepare import prepare_lines
 from mdroll.provenance import environment
 
-#: (lanes, steps a lane, registers) tried at thesis scale besides the default choice
-LAYOUTS = ((128, 8, 80), (128, 8, 128), (64, 8, 96), (256, 8, 96), (256, 4, 80), (128, 4, 96))
+#: (lanes, steps a lane, registers) tried at thesis scale besides the default choice, each with and
+#: without the delay line
+LAYOUTS = ((128, 8, 128), (128, 8, 112), (128, 8, 96), (64, 8, 96), (256, 8, 96), (256, 4, 80))
 
 
-def kernel_ms(prepared, p, device, repeats, form, layout=None, check=None):
+def kernel_ms(prepared, p, device, repeats, form, layout=None, check=None, delay=None):
     """Median force-kernel time (ms) and max |F - check| / F_N."""
     default = sweep.STREAM_LAYOUTS
     if layout:
         sweep.STREAM_LAYOUTS = (layout,)
     try:
-        command, force = sweep.sweep_command(prepared, p, p.d0, device, offset=p.F_N, form=form)
+        command, force = sweep.sweep_command(prepared, p, p.d0, device, offset=p.F_N, form=form, delay=delay)
     finally:
         sweep.STREAM_LAYOUTS = default
     command.launch()
@@ -60,9 +61,11 @@ def main() -> None:
     record["thesis"]["stream_default"] = {"ms": stream_ms, "max_abs_minus_tiles_over_F_N": error}
     print(f"edge {record['thesis']['edge_ms']:.3f} ms, tiles {tiles_ms:.3f} ms, stream {stream_ms:.3f} ms", flush=True)
     for layout in LAYOUTS:
-        ms, error, _ = kernel_ms(prepared, p, device, args.repeats, "stream", layout, reference)
-        record["thesis"]["x".join(map(str, layout))] = {"ms": ms, "max_abs_minus_tiles_over_F_N": error}
-        print(f"stream {layout}: {ms:.3f} ms ({error:.1e} F_N)", flush=True)
+        for delay in (True, False):
+            ms, error, _ = kernel_ms(prepared, p, device, args.repeats, "stream", layout, reference, delay)
+            name = "x".join(map(str, layout)) + ("-delay" if delay else "")
+            record["thesis"][name] = {"ms": ms, "max_abs_minus_tiles_over_F_N": error}
+            print(f"stream {name}: {ms:.3f} ms ({error:.1e} F_N)", flush=True)
     with open(args.out, "w") as f:
         json.dump(record, f, indent=1)
 

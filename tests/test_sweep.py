@@ -1,5 +1,7 @@
 """The sweep (physics.md section 4): exact in O(n) at fixed d, against the direct sum (eq 10-12)."""
 
+import itertools
+
 import numpy as np
 import pytest
 from reference import contact_reach, direct_force, sweep_force, to_numpy
@@ -143,16 +145,17 @@ def test_same_force_whatever_the_form_the_tile_the_block_the_chunk_or_the_batch(
             command.launch()
             assert np.max(np.abs(to_numpy(force) - reference)) <= 1e-12 * p.F_N, chunk
     # the stream: segments of 2 chunks to the whole line, chunks of 1 to 16 steps (64 to 256 lanes
-    # on CUDA, 1 to 16 steps a lane, rings that wrap mid-chunk); launched twice
+    # on CUDA, 1 to 16 steps a lane, rings that wrap mid-chunk), with and without the delay line;
+    # launched twice
     streams = ([(1, 1, 2), (1, 3, 48), (1, 16, 4096)] if device == "cpu"
                else [(32, 1, 64), (64, 3, 384), (128, 8, 2048), (256, 4, None), (256, 2, 1024)])
-    for lanes, per_lane, segment in streams:
+    for (lanes, per_lane, segment), delay in itertools.product(streams, (True, False)):
         prepared = prepare_lines(to_warp(lines, device), p, "sweep", "open", d, device)
         command, force = sweep_command(prepared, p, d, device, form="stream", block_dim=lanes, per_lane=per_lane,
-                                       segment=segment)
+                                       segment=segment, delay=delay)
         for _ in range(2):
             command.launch()
-            assert np.max(np.abs(to_numpy(force) - reference)) <= 1e-12 * p.F_N, (lanes, per_lane, segment)
+            assert np.max(np.abs(to_numpy(force) - reference)) <= 1e-12 * p.F_N, (lanes, per_lane, segment, delay)
     # one by one, with the batch's wheel positions (h_max): each line's own bounds and scale
     alone = np.concatenate([_sweep(lines[r:r + 1], p, "open", d, device, h_max=lines.max()) for r in range(3)])
     assert np.max(np.abs(alone - reference)) <= 1e-12 * p.F_N
@@ -195,26 +198,36 @@ def test_prefix_sums_only_for_the_forms_that_read_them(device):
 
 
 def test_stream_layout_keeps_the_multiprocessor_busy_as_the_band_grows(monkeypatch):
-    """On CUDA the first layout of STREAM_LAYOUTS that keeps 16 warps resident (ring of chunk +
-    band bins in shared memory, registers): 128 lanes x 8 steps from the thesis's band to
-    ~2000 springs, then 256 lanes; None beyond a block's shared memory. Each
-    segment spans at least 16 bands and two chunks; STREAM_WAVES waves of blocks where the lines allow."""
+    """On CUDA the first layout of STREAM_LAYOUTS, with the delay line where its ring (chunk +
+    2 outer bins) allows, else without (chunk + band bins), that keeps 16 warps resident
+    (shared memory, registers): 128 lanes x 8 steps with the delay line at the thesis's reach
+    (~1030 springs), without it beyond ~2400 springs and up to bands of ~2000, then 256 lanes;
+    None beyond a block's shared memory. Each segment spans at least 16 spans of events and two
+    chunks; STREAM_WAVES waves of blocks where the lines allow. A layout asked for is kept."""
     import mdroll.ensemble.sweep as sweep
 
     monkeypatch.setattr(sweep, "is_cuda", lambda device: True)
     monkeypatch.setattr(sweep, "warp", lambda: type("W", (), {"get_device": lambda device: type("D", (), {"sm_count": 132})}))
-    thesis = stream_layout(47, 300, 2**20, "cuda:0")
-    assert (thesis["block_dim"], thesis["per_lane"], thesis["ring"], thesis["resident"]) == (128, 8, 1280, 5)
+    thesis = stream_layout(42, 1034, 300, 2**20, "cuda:0")
+    assert (thesis["block_dim"], thesis["per_lane"], thesis["ring"], thesis["delay"], thesis["resident"]) == (
+        128, 8, 3328, True, 4)  # 1024 + 2069 bins, 53.6 KiB: 4 blocks, as the 128 registers a lane allow
     waves = sweep.STREAM_WAVES
-    assert thesis["segment"] == -(-300 * 2**20 // (waves * 132 * 5) // 1024) * 1024
-    fine = stream_layout(2050, 256, 2**21, "cuda:0")
-    assert (fine["block_dim"], fine["per_lane"], fine["ring"], fine["resident"]) == (128, 8, 3328, 4)
-    finer = stream_layout(4100, 256, 2**22, "cuda:0")
+    assert thesis["segment"] == -(-300 * 2**20 // (waves * 132 * 4) // 1024) * 1024
+    undelayed = stream_layout(42, 1034, 300, 2**20, "cuda:0", delay=False)
+    assert (undelayed["ring"], undelayed["delay"], undelayed["resident"]) == (1280, False, 4)
+    wide = stream_layout(110, 2700, 256, 2**17, "cuda:0")  # 1024 + 5401 bins would leave 2 blocks
+    assert (wide["block_dim"], wide["ring"], wide["delay"], wide["resident"]) == (128, 1280, False, 4)
+    fine = stream_layout(2050, 50000, 256, 2**21, "cuda:0")
+    assert (fine["block_dim"], fine["per_lane"], fine["ring"], fine["delay"], fine["resident"]) == (128, 8, 3328, False, 4)
+    finer = stream_layout(4100, 100000, 256, 2**22, "cuda:0")
     assert (finer["block_dim"], finer["per_lane"], finer["ring"], finer["resident"]) == (256, 8, 6400, 2)
     assert finer["segment"] == -(-max(256 * 2**22 // (waves * 132 * 2), 16 * 4100) // 2048) * 2048
-    assert stream_layout(13000, 64, 2**22, "cuda:0") is None  # 15 Ki bins: more than 227 KiB
+    assert stream_layout(13000, 200000, 64, 2**22, "cuda:0") is None  # 15 Ki bins: more than 227 KiB
+    own = stream_layout(42, 1034, 300, 2**20, "cuda:0", block_dim=64, per_lane=8, delay=True)
+    assert (own["block_dim"], own["per_lane"], own["ring"], own["delay"]) == (64, 8, 2816, True)
     monkeypatch.undo()
-    assert stream_layout(47, 3, 1000, "cpu")["block_dim"] == 1
+    cpu = stream_layout(42, 1034, 3, 1000, "cpu")
+    assert (cpu["block_dim"], cpu["ring"], cpu["delay"]) == (1, 2112, True)
 
 
 def test_sweep_runs_decoupled_and_coupled_ensembles_as_the_tree():

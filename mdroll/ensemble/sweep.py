@@ -80,11 +80,13 @@ def sweep_tile(band: int, device: str, tile_steps: int | None = None, block_dim:
 
 
 #: The stream form (kernels/sweep_stream.py) on CUDA: its layouts ``(lanes a block, steps a lane
-#: a chunk, registers a lane)``, in order of preference; the launch takes the first that keeps
-#: STREAM_MIN_WARPS warps resident on a multiprocessor (its ring of ``lanes x steps + band`` bins
-#: in shared memory, its registers), else the one that keeps the most: a wide band (a fine line)
-#: trades steps a lane for lanes.
-STREAM_LAYOUTS = ((128, 8, 96), (256, 8, 96), (256, 4, 80))
+#: a chunk, registers a lane)``, in order of preference, each first with the delay line; the
+#: launch takes the first that keeps STREAM_MIN_WARPS warps resident on a multiprocessor (its ring
+#: of ``lanes x steps + 2 outer`` bins, or ``+ band`` without the delay line, in shared memory,
+#: its registers), else the one that keeps the most: a long reach drops the delay line, a wide
+#: band (a fine line) trades steps a lane for lanes. 128 registers: 3.07-3.10 ms at thesis scale
+#: against 3.22 at 96 (benchmarks/results/sweep_stream_H200.json).
+STREAM_LAYOUTS = ((128, 8, 128), (256, 8, 96), (256, 4, 80))
 STREAM_MIN_WARPS = 16
 #: What an H100/H200 multiprocessor holds: shared memory (bytes; a block at most 227 KiB),
 #: registers, lanes.
@@ -95,20 +97,28 @@ SM_LANES = 2048
 #: The CPU runs a block as one lane, ``STREAM_CPU_PER_LANE`` steps a chunk.
 STREAM_CPU_PER_LANE = 16
 #: Blocks a launch aims at: this many per resident block slot of the device, so that the last
-#: wave's tail is short; a segment is never shorter than STREAM_SEGMENT_PER_BAND times the band
-#: (its anchor reads the band's 2 x band springs once) nor than two chunks.
+#: wave's tail is short; a segment is never shorter than STREAM_SEGMENT_PER_BAND times the span
+#: of its events (:func:`_span`: its anchor puts the events of up to that many springs in the
+#: ring) nor than two chunks. Shorter segments (4, 2 or 1 span) made the short lines of the
+#: distance study slower on an H200, not faster.
 STREAM_WAVES = 4
 STREAM_SEGMENT_PER_BAND = 16
 
 
-def _ring(chunk: int, band: int, unit: int) -> tuple[int, int]:
-    """The stream's ring for chunks of ``chunk`` steps and a band of ``band`` springs (``chunk +
-    band + 1`` bins, rounded up to ``unit``) and the shared memory its block takes (bytes: the
-    bins and ~1 KiB of the warps' and the anchor's totals)."""
+def _ring(chunk: int, span: int, unit: int) -> tuple[int, int]:
+    """The stream's ring for chunks of ``chunk`` steps and events up to ``span`` steps past a
+    chunk's last (``chunk + span + 1`` bins, rounded up to ``unit``) and the shared memory its
+    block takes (bytes: the bins and ~1 KiB of the warps' and the anchor's totals)."""
     from ..kernels.sweep_stream import BIN_BYTES
 
-    ring = -(-(chunk + band + 1) // unit) * unit
+    ring = -(-(chunk + span + 1) // unit) * unit
     return ring, ring * BIN_BYTES + 1024
+
+
+def _span(band: int, outer: int, delay: bool) -> int:
+    """The steps past a chunk's last that its events reach: a spring's contact, 2 outer, with the
+    delay line, else the band."""
+    return max(2 * outer if delay else band, 0)
 
 
 def _resident(shared: float, lanes: int, registers: int) -> int:
@@ -117,52 +127,61 @@ def _resident(shared: float, lanes: int, registers: int) -> int:
     return int(min(SM_SHARED // shared, SM_REGISTERS // (lanes * registers), SM_LANES // lanes))
 
 
-def stream_layout(band: int, rows: int, steps: int, device: str, block_dim: int | None = None,
-                  per_lane: int | None = None, segment: int | None = None) -> dict | None:
-    """The stream form's launch for a widest band of ``band`` springs and ``rows x steps`` steps:
-    ``{"block_dim", "per_lane", "max_registers", "ring", "segment"}``, or None where no ring
-    fits a block's shared memory (or the band passes MAX_STREAM_BAND). ``block_dim`` and
-    ``per_lane`` pick a layout, ``segment`` the steps a block."""
+def stream_layout(band: int, outer: int, rows: int, steps: int, device: str, block_dim: int | None = None,
+                  per_lane: int | None = None, segment: int | None = None, delay: bool | None = None) -> dict | None:
+    """The stream form's launch for a widest band of ``band`` springs, a widest reach of
+    ``outer`` springs and ``rows x steps`` steps: ``{"block_dim", "per_lane", "max_registers",
+    "ring", "delay", "segment"}``, or None where no ring fits a block's shared memory (or the
+    band passes MAX_STREAM_BAND). The delay line (a spring's leaving event put in the ring when
+    it enters: one read and one reach a spring instead of two) needs a ring spanning the
+    2 outer + 1 steps of a spring's contact, the other only its band's: each layout takes it
+    where it still keeps STREAM_MIN_WARPS warps resident. ``block_dim``, ``per_lane`` and
+    ``delay`` pick a layout, ``segment`` the steps a block."""
     from ..kernels.sweep_stream import MAX_STREAM_BAND, RING_UNIT
 
     if band > MAX_STREAM_BAND:
         return None
     wp = warp()
+    delays = (True, False) if delay is None else (delay,)
     if not is_cuda(device):
         chunk = per_lane or STREAM_CPU_PER_LANE
-        ring, shared = _ring(chunk, band, 32)
-        if shared > BLOCK_SHARED:
+        layout = None
+        for delayed in delays:
+            ring, shared = _ring(chunk, _span(band, outer, delayed), 32)
+            if shared <= BLOCK_SHARED:
+                layout = {"block_dim": 1, "per_lane": chunk, "max_registers": None, "ring": ring, "delay": delayed,
+                          "resident": 1}
+                break
+        if layout is None:
             return None
-        layout = {"block_dim": 1, "per_lane": chunk, "max_registers": None, "ring": ring, "resident": 1}
         slots = 1
     else:
         best = None
-        for lanes, steps_a_lane, registers in STREAM_LAYOUTS:
-            if (block_dim and lanes != block_dim) or (per_lane and steps_a_lane != per_lane):
-                continue
-            ring, shared = _ring(lanes * steps_a_lane, band, RING_UNIT)
+        candidates = [(lanes, steps_a_lane, registers, delayed) for lanes, steps_a_lane, registers in STREAM_LAYOUTS
+                      for delayed in delays
+                      if not (block_dim and lanes != block_dim) and not (per_lane and steps_a_lane != per_lane)]
+        if not candidates and block_dim and per_lane:  # a layout of the caller's own
+            candidates = [(block_dim, per_lane, None, delayed) for delayed in delays]
+        for lanes, steps_a_lane, registers, delayed in candidates:
+            ring, shared = _ring(lanes * steps_a_lane, _span(band, outer, delayed), RING_UNIT)
             if shared > BLOCK_SHARED:
                 continue
-            resident = _resident(shared, lanes, registers)
+            resident = _resident(shared, lanes, registers) if registers else 1
             candidate = {"block_dim": lanes, "per_lane": steps_a_lane, "max_registers": registers, "ring": ring,
-                         "resident": resident}
+                         "delay": delayed, "resident": resident}
             if best is None or resident * lanes > best["resident"] * best["block_dim"]:
                 best = candidate
             if resident * lanes >= 32 * STREAM_MIN_WARPS:
                 best = candidate
                 break
-        if best is None and block_dim and per_lane:  # a layout of the caller's own
-            ring, shared = _ring(block_dim * per_lane, band, RING_UNIT)
-            if shared <= BLOCK_SHARED:
-                best = {"block_dim": block_dim, "per_lane": per_lane, "max_registers": None, "ring": ring,
-                        "resident": 1}
         if best is None:
             return None
         layout = best
         slots = wp.get_device(device).sm_count * layout["resident"]
     chunk = layout["block_dim"] * layout["per_lane"]
     if segment is None:
-        segment = max(-(-rows * steps // (STREAM_WAVES * slots)), STREAM_SEGMENT_PER_BAND * band, 2 * chunk)
+        segment = max(-(-rows * steps // (STREAM_WAVES * slots)),
+                      STREAM_SEGMENT_PER_BAND * _span(band, outer, layout["delay"]), 2 * chunk)
     layout["segment"] = -(-segment // chunk) * chunk
     return layout
 
@@ -170,7 +189,7 @@ def stream_layout(band: int, rows: int, steps: int, device: str, block_dim: int 
 def sweep_command(prepared, params: Params, d: float, device: str, out=None, offset: float = 0.0,
                   tile_steps: int | None = None, block_dim: int | None = None, loads: int | None = None,
                   form: str | None = None, chunk: int | None = None, per_lane: int | None = None,
-                  segment: int | None = None):
+                  segment: int | None = None, delay: bool | None = None):
     """The sweep's force launch, recorded (``wp.Launch``; run with ``.launch()``), and the
     (R, steps) array it writes: ``F - offset`` (N) at indentation d (m) for every step.
 
@@ -178,7 +197,7 @@ def sweep_command(prepared, params: Params, d: float, device: str, out=None, off
     :func:`mdroll.ensemble.prepare.prepare_lines`); the forms that read prefix sums build them
     into it on first use. ``form`` (:data:`FORMS`) picks the kernel,
     by default :data:`DEFAULT_FORM` of the device's kind; for the stream ``block_dim``,
-    ``per_lane`` and ``segment`` override the layout of :func:`stream_layout`; for the tiles
+    ``per_lane``, ``segment`` and ``delay`` override the layout of :func:`stream_layout`; for the tiles
     ``tile_steps`` and ``block_dim`` override the defaults of :func:`sweep_tile` and ``loads``
     CUDA_LOADS (1 on the CPU); for the sequential form ``chunk`` overrides the default of
     max(SEQUENTIAL_CHUNK, SEQUENTIAL_CHUNK_PER_BAND x band). The force is the same to rounding
@@ -193,10 +212,11 @@ def sweep_command(prepared, params: Params, d: float, device: str, out=None, off
     rows = p.lines.shape[0]
     curvature = physics.indenter_profile(params.dx, params.R)  # eq 7 at one spacing
     # the widest band of the batch (each row's own is narrower): from its lowest and highest spring
-    band = reach_strict(d + p.h_top, curvature) - max(reach_strict(d + p.h_low, curvature), 0)
+    outer = reach_strict(d + p.h_top, curvature)
+    band = outer - max(reach_strict(d + p.h_low, curvature), 0)
     if form is None:
         form = DEFAULT_FORM["cuda" if is_cuda(device) else "cpu"]
-        if form == "stream" and stream_layout(band, rows, p.steps, device) is None:
+        if form == "stream" and stream_layout(band, outer, rows, p.steps, device) is None:
             form = "sequential"
     if form not in FORMS:
         raise ParameterError(f"form = {form!r}: the sweep's forms are {', '.join(map(repr, FORMS))}")
@@ -210,7 +230,7 @@ def sweep_command(prepared, params: Params, d: float, device: str, out=None, off
     if form == "stream":
         from ..kernels.sweep_stream import stream_kernel
 
-        layout = stream_layout(band, rows, p.steps, device, block_dim, per_lane, segment)
+        layout = stream_layout(band, outer, rows, p.steps, device, block_dim, per_lane, segment, delay)
         if layout is None:
             raise ParameterError(f"the sweep's band of uncertain contact spans {band} springs a side, wider than the "
                                  f"stream form's ring allows: use form='sequential'")
@@ -218,7 +238,8 @@ def sweep_command(prepared, params: Params, d: float, device: str, out=None, off
             if array.strides[1] != 8:
                 raise ParameterError(f"{name}: the sweep's stream form needs rows of contiguous float64 values, "
                                      f"not {array.strides[1]} bytes apart")
-        kernel = stream_kernel(layout["block_dim"], layout["per_lane"], layout["ring"], layout["max_registers"])
+        kernel = stream_kernel(layout["block_dim"], layout["per_lane"], layout["ring"], layout["max_registers"],
+                               layout["delay"])
         inputs = [p.lines, p.bounds, p.n_work, p.first, p.steps, layout["segment"], d, curvature,
                   params.k_spring, offset, force]
         command = wp.launch_tiled(kernel, dim=(rows, -(-p.steps // layout["segment"])), inputs=inputs,
