@@ -342,10 +342,15 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
 
     @wp.func
     def spring_value(level: wp.float64, reach: int, curvature: wp.float64, scale: wp.float64) -> wp.int64:
-        """A spring's entering value ``round(u scale)``, ``u = level - curvature M^2``: it leaves
-        with ``unit (2 M + 1)`` less it."""
+        """A spring's entering value ``round(u scale)``, ``u = level - curvature M^2``."""
         root = exact_double(reach)
         return fixed_value(level - curvature * root * root, scale)
+
+    @wp.func
+    def leaving_value(value: wp.int64, reach: int, unit: wp.int64) -> wp.int64:
+        """The value a spring that entered with ``value`` leaves with: ``unit (2 M + 1)`` less it
+        (its ``- curvature (2 M + 1)`` at the offset ``-(M + 1)``, exact)."""
+        return unit * wp.int64(2 * reach + 1) - value
 
     @wp.func
     def step_bin(state: state4, base: wp.uint64, at: int, near: int) -> state4:
@@ -438,14 +443,12 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
                 reach = reach_guessed(level_i, curvature, inverse_curvature)
                 if reach >= 0:
                     value = spring_value(level_i, reach, curvature, scale)
-                    leaver = unit * wp.int64(2 * reach + 1) - value
+                    leaver = leaving_value(value, reach, unit)
                     if reach >= wp.abs(m):
                         count += wp.int64(1)
                         offsets += wp.int64(m)
                         level += level_i - curvature * wp.float64(m) * wp.float64(m)
-                        if wp.static(DELAY):
-                            add_event(base, slot(0, m + reach), reach - near, leaver, 1)
-                        elif m < 0:
+                        if wp.static(DELAY) or m < 0:
                             add_event(base, slot(0, m + reach), reach - near, leaver, 1)
                     elif m > 0:
                         add_event(base, slot(0, m - reach - 1), reach - near, value, 0)
@@ -496,10 +499,10 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
                             add_event(base, slot(head, entry), reach - near, value, 0)
                             if wp.static(DELAY):
                                 add_event(base, slot(head, entry + 2 * reach + 1), reach - near,
-                                          unit * wp.int64(2 * reach + 1) - value, 1)
+                                          leaving_value(value, reach, unit), 1)
                         else:
                             add_event(base, slot(head, q * BD + lane + reach - near), reach - near,
-                                      unit * wp.int64(2 * reach + 1) - value, 1)
+                                      leaving_value(value, reach, unit), 1)
             sync_block()
             # 2. this lane's bins: read, compose into one map
             own = state4()
