@@ -264,9 +264,9 @@ def test_coupled_step_equals_the_direct_sum_where_the_wheel_leaves_the_rail(devi
 def test_band_beyond_the_tiles_int32_sums_runs_sequentially(device):
     """A band of uncertain contact wider than MAX_BAND springs (a spring below the wheel's reach
     at every position makes the whole window uncertain) runs in the sequential form, equal to
-    the tree; the tiles or the stream asked for there, a form that does not exist, or a stream
-    asked to write into a strided ``out``, are refused with one clear line, before the kernel
-    runs."""
+    the tree; the tiles or the stream asked for there, a form that does not exist, a stream
+    asked to write into a strided ``out``, or the delay line asked for where its ring cannot
+    hold a spring's reach, are refused with one clear line, before the kernel runs."""
     from mdroll import ParameterError
     from mdroll.kernels.sweep import MAX_BAND
 
@@ -280,6 +280,15 @@ def test_band_beyond_the_tiles_int32_sums_runs_sequentially(device):
         _sweep(lines, p, "open", p.d0, device, form="tiles")
     with pytest.raises(ParameterError, match="the stream form's ring allows: use form='sequential'"):
         _sweep(lines, p, "open", p.d0, device, form="stream")
+    # a smooth line (band 0) whose reach, ~8000 springs, is too long for the delay line's ring
+    long_reach = Params(L=4.2 * a, dx=a / 8000)
+    smooth = prepare_lines(to_warp(np.zeros((1, long_reach.n_points)), device), long_reach, "sweep", "open",
+                           long_reach.d0, device)
+    with pytest.raises(ParameterError, match=r"^delay=True: the sweep's reach of \d+ springs a side needs a ring of "
+                                             r"2 x \d+ bins, more than the stream form's shared memory allows: use "
+                                             r"delay=False or None$"):
+        sweep_command(smooth, long_reach, long_reach.d0, device, form="stream", delay=True)
+    sweep_command(smooth, long_reach, long_reach.d0, device, form="stream", delay=False)  # fits without it
     prepared = prepare_lines(to_warp(np.zeros((1, SMALL.n_points)), device), SMALL, "sweep", "periodic", SMALL.d0,
                              device)
     strided = to_warp(np.zeros((1, 2 * prepared.steps)), device)[:, ::2]

@@ -232,6 +232,10 @@ def sweep_command(prepared, params: Params, d: float, device: str, out=None, off
 
         layout = stream_layout(band, outer, rows, p.steps, device, block_dim, per_lane, segment, delay)
         if layout is None:
+            if delay and stream_layout(band, outer, rows, p.steps, device, block_dim, per_lane, segment, False):
+                raise ParameterError(f"delay=True: the sweep's reach of {outer} springs a side needs a ring of "
+                                     f"2 x {outer} bins, more than the stream form's shared memory allows: use "
+                                     f"delay=False or None")
             raise ParameterError(f"the sweep's band of uncertain contact spans {band} springs a side, wider than the "
                                  f"stream form's ring allows: use form='sequential'")
         for name, array in (("lines", p.lines), ("out", force)):  # the kernel walks rows by address
