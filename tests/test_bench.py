@@ -18,6 +18,36 @@ def test_fit_exponent_recovers_a_power_law():
     assert slope == pytest.approx(1.5, abs=4 * err) and 0 < err < 0.05
 
 
+def test_device_timed_leaves_the_enqueue_outside(device):
+    """On CUDA the timer reads the device's clock around the work alone: a kernel that the GPU's
+    global timer holds 1 ms, enqueued after 0.1 ms of host work (within the hold before the
+    start event, ``HOLD_S``), measures 1 ms, where the wall clock would read 1.1 ms or more; on
+    the CPU the timer is the wall clock, which counts the host's work."""
+    import time
+
+    import warp as wp
+
+    from mdroll.kernels.clock import hold_stream
+
+    cuda = device.startswith("cuda")
+
+    def work():
+        begin = time.perf_counter()
+        while time.perf_counter() - begin < 1e-4:
+            pass
+        if cuda:
+            wp.launch(hold_stream, dim=1, inputs=[1_000_000], device=device)
+
+    assert bench.HOLD_S >= 2e-4  # room for the host's 0.1 ms
+    wp.launch(hold_stream, dim=1, inputs=[0], device=device)  # loaded before the clock
+    median, times = bench.device_timed(work, device, 5)
+    assert len(times) == 5 and median == sorted(times)[2]
+    if cuda:
+        assert 1e-3 <= median < 1.05e-3
+    else:
+        assert median >= 1e-4
+
+
 def test_memory_per_realization_is_affine_in_n():
     # open boundary: steps = n - (fixed margins), so bytes = alpha n - beta
     m1, m2, m4 = (bench.memory_per_realization(Params(L=L), "tree", "cpu") for L in (0.1, 0.2, 0.4))

@@ -3,9 +3,11 @@ plot (:mod:`.report`)."""
 
 from .report import expected_exponent, format_table, plot_study, refinement_note
 from .study import (
+    HOLD_S,
     STUDIES,
     StudySize,
     compile_time,
+    device_timed,
     fit_exponent,
     force_time,
     memory_per_realization,
@@ -16,9 +18,11 @@ from .study import (
 )
 
 __all__ = [
+    "HOLD_S",
     "STUDIES",
     "StudySize",
     "compile_time",
+    "device_timed",
     "expected_exponent",
     "fit_exponent",
     "force_time",

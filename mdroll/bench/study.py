@@ -3,7 +3,7 @@
 
 Sections (each a list of timed points, each point the median of ``repeats`` runs on fresh lines,
 the device synchronized before every clock read, after a warm-up whose compile time is
-reported apart):
+reported apart; a CUDA force kernel alone is timed on the device's clock, :func:`device_timed`):
 
 - ``refinement``: fixed L, dx halving (n doubles, springs in contact double): direct ~ n^2,
   tree ~ n log n, edge ~ n (each entry's ``complexity``); the exponent of time vs n is fitted
@@ -106,6 +106,36 @@ def timed(fn, device: str, repeats: int, setup=None) -> tuple[float, list[float]
     return statistics.median(times), times
 
 
+#: On CUDA a force launch is timed on the device's clock: events recorded around it, enqueued
+#: behind a kernel that holds the stream this long (s), so that the host's time to enqueue the
+#: launch and the events (~15-20 us with Warp's Python launch) stays outside the events, as
+#: NVIDIA's nvbench times kernels.
+HOLD_S = 200e-6
+
+
+def device_timed(fn, device: str, repeats: int, setup=None) -> tuple[float, list[float]]:
+    """:func:`timed`, on CUDA on the device's clock: the seconds between events recorded just
+    before and after ``fn``'s device work (see :data:`HOLD_S`); on the CPU the wall clock."""
+    if not device.startswith("cuda"):
+        return timed(fn, device, repeats, setup)
+    from ..kernels.clock import hold_stream
+
+    wp = warp()
+    stream = wp.get_stream(device)
+    times = []
+    for i in range(repeats):
+        arg = None
+        arg = setup(i) if setup else None
+        synchronize(device)
+        start, end = wp.Event(device, enable_timing=True), wp.Event(device, enable_timing=True)
+        wp.launch(hold_stream, dim=1, inputs=[int(HOLD_S * 1e9)], device=device)
+        stream.record_event(start)
+        fn(arg) if setup else fn()
+        stream.record_event(end)
+        times.append(wp.get_event_elapsed_time(start, end) / 1e3)
+    return statistics.median(times), times
+
+
 def fit_exponent(n, t) -> tuple[float, float]:
     """Least-squares slope p of log t = p log n + c and its standard error."""
     x, y = np.log(np.asarray(n, float)), np.log(np.asarray(t, float))
@@ -116,13 +146,16 @@ def fit_exponent(n, t) -> tuple[float, float]:
 
 
 def force_time(params: Params, algorithm: str, realizations: int, device: str, repeats: int,
-               boundary: str = "periodic", leaf_size: int = DEFAULT_LEAF_SIZE, band_limit: int = DEFAULT_BAND_LIMIT) -> dict:
+               boundary: str = "periodic", leaf_size: int = DEFAULT_LEAF_SIZE, band_limit: int = DEFAULT_BAND_LIMIT,
+               clock: str = "device") -> dict:
     """Median time (s) of the force kernel alone and of the per-line build, on fresh lines each
     repeat; ``leaf_size`` and ``band_limit`` tune the tree (:func:`mdroll.contact_force`).
 
     The launch is recorded outside the clock (:func:`mdroll.ensemble.force.force_command`):
     its host work, ~0.2 ms for the tree whatever n, would otherwise flatten the slopes of the
-    small GPU sizes."""
+    small GPU sizes. ``clock="device"`` times the kernel on CUDA by :func:`device_timed`,
+    ``"wall"`` with the host's clock around its launch (:func:`timed`, which adds the ~15-20 us
+    of the launch itself)."""
     wp = warp()
     d = params.d0
     h_bound = H_BOUND_SIGMAS * params.h0
@@ -140,11 +173,15 @@ def force_time(params: Params, algorithm: str, realizations: int, device: str, r
         prepared = build(fresh_lines(i + 1))
         return force_command(prepared, params, algorithm, d, device, out=out)[0], prepared
 
-    force_s, times = timed(lambda command_and_lines: command_and_lines[0].launch(), device, repeats, setup=recorded)
+    def launch(command_and_lines):
+        command_and_lines[0].launch()
+
+    force_s, times = (timed if clock == "wall" else device_timed)(launch, device, repeats, setup=recorded)
     build_s, _ = timed(build, device, repeats, setup=lambda i: fresh_lines(i + 1))
     return {"algorithm": algorithm, "device": device, "n": params.n_points, "dx": params.dx, "L": params.length,
             "realizations": realizations, "steps": steps, "force_s": force_s, "force_times_s": times, "build_s": build_s,
             "leaf_size": leaf_size, "band_limit": band_limit, "ns_per_step": force_s / (realizations * steps) * 1e9,
+            "clock": "device events" if clock == "device" and device.startswith("cuda") else "wall",
             "springs_in_contact": params.springs_in_contact}
 
 
