@@ -24,7 +24,7 @@ from mdroll.provenance import environment
 
 #: (lanes, steps a lane, registers) tried at thesis scale besides the default choice, each with and
 #: without the delay line
-LAYOUTS = ((128, 8, 128), (128, 8, 112), (128, 8, 96), (64, 8, 96), (256, 8, 96), (256, 4, 80))
+LAYOUTS = ((128, 8, 128), (128, 8, 112), (128, 8, 96), (64, 8, 96), (256, 8, 128), (256, 8, 96), (256, 4, 128))
 
 
 def kernel_ms(prepared, p, device, repeats, form, layout=None, check=None, delay=None):

@@ -84,9 +84,11 @@ def sweep_tile(band: int, device: str, tile_steps: int | None = None, block_dim:
 #: launch takes the first that keeps STREAM_MIN_WARPS warps resident on a multiprocessor (its ring
 #: of ``lanes x steps + 2 outer`` bins, or ``+ band`` without the delay line, in shared memory,
 #: its registers), else the one that keeps the most: a long reach drops the delay line, a wide
-#: band (a fine line) trades steps a lane for lanes. 128 registers: 3.07-3.10 ms at thesis scale
-#: against 3.22 at 96 (benchmarks/results/sweep_stream_H200.json).
-STREAM_LAYOUTS = ((128, 8, 128), (256, 8, 96), (256, 4, 80))
+#: band (a fine line) trades steps a lane for lanes. 128 registers, where the kernel loads a
+#: chunk ahead without spilling: 2.84 ms at thesis scale against 3.09 at 96; 256 lanes x 8 steps
+#: at 2^22 springs on 0.25 m (two blocks a multiprocessor either way) 0.0140 ns a step against
+#: 0.0165 at 96 (benchmarks/results/sweep_stream_H200.json, docs/performance.md s9).
+STREAM_LAYOUTS = ((128, 8, 128), (256, 8, 128), (256, 4, 128))
 STREAM_MIN_WARPS = 16
 #: What an H100/H200 multiprocessor holds: shared memory (bytes; a block at most 227 KiB),
 #: registers, lanes.
