@@ -5,8 +5,8 @@ the tiles. The exponents: ``benchmarks/sweep_exponents.py``.
 
     python benchmarks/sweep_stream_tuning.py --out sweep_stream_H200.json
 
-Times: median of ``--repeats`` launches (``mdroll.bench.timed``, launch recorded outside the
-clock).
+Times: median of ``--repeats`` launches on the device's clock (``mdroll.bench.device_timed``,
+launch recorded outside the clock), edge's as the study's (``mdroll.bench.force_time``).
 """
 
 import argparse
@@ -16,7 +16,7 @@ import numpy as np
 
 import mdroll.ensemble.sweep as sweep
 from mdroll import Params, rough_lines
-from mdroll.bench import force_time, timed
+from mdroll.bench import device_timed, force_time
 from mdroll.devices import resolve_device, to_warp
 from mdroll.ensemble.pipeline import H_BOUND_SIGMAS
 from mdroll.ensemble.prepare import prepare_lines
@@ -37,7 +37,7 @@ def kernel_ms(prepared, p, device, repeats, form, layout=None, check=None, delay
     finally:
         sweep.STREAM_LAYOUTS = default
     command.launch()
-    median, _ = timed(command.launch, device, repeats)
+    median, _ = device_timed(command.launch, device, repeats)
     values = force.numpy()
     error = None if check is None else float(np.max(np.abs(values - check)) / p.F_N)
     return median * 1e3, error, values

@@ -4,10 +4,10 @@ floor, and a check of every variant against the default.
 
     python benchmarks/sweep_tuning.py --device cuda:0 --out sweep_tuning.json
 
-Each time is the median of ``--repeats`` launches on fresh lines (``mdroll.bench.timed``, the
-launch recorded outside the clock). The floor is a device-to-device copy of the lines (bytes read
-+ written over its time): the sweep moves 16 bytes a step (a height in, a force out), as the edge
-kernel does. The defaults in ``mdroll/ensemble/sweep.py`` (CUDA_MIN_TILE, CUDA_BLOCK_DIM,
+Each time is the median of ``--repeats`` launches on fresh lines on the device's clock
+(``mdroll.bench.device_timed``, the launch recorded outside the clock). The floor is a
+device-to-device copy of the lines (bytes read + written over its time): the sweep moves 16 bytes
+a step (a height in, a force out), as the edge kernel does. The defaults in ``mdroll/ensemble/sweep.py`` (CUDA_MIN_TILE, CUDA_BLOCK_DIM,
 CUDA_LOADS) come from this study.
 """
 
@@ -18,7 +18,7 @@ import json
 import numpy as np
 
 from mdroll import Params, rough_lines
-from mdroll.bench import force_time, timed
+from mdroll.bench import device_timed, force_time
 from mdroll.devices import resolve_device, to_warp, warp
 from mdroll.ensemble.pipeline import H_BOUND_SIGMAS
 from mdroll.ensemble.prepare import prepare_lines
@@ -49,7 +49,7 @@ def main() -> None:
 
     lines = to_warp(rough_lines(p, 0, p.n_real, device=device), device)
     copy = wp.empty_like(lines)
-    copy_s, _ = timed(lambda: wp.copy(copy, lines), device, args.repeats)
+    copy_s, _ = device_timed(lambda: wp.copy(copy, lines), device, args.repeats)
     record["copy_floor"] = {"bytes": 2 * lines.size * 8, "s": copy_s, "bytes_per_s": 2 * lines.size * 8 / copy_s}
     print(f"copy floor: {2 * lines.size * 8 / copy_s / 1e12:.2f} TB/s ({copy_s * 1e3:.2f} ms for 2 x {lines.size * 8 / 1e9:.2f} GB)",
           flush=True)
@@ -70,7 +70,7 @@ def main() -> None:
         command, force = sweep_command(prepared, p, d, device, tile_steps=tile, block_dim=lanes, loads=loads)
         command.launch()
         error = float(np.max(np.abs(force.numpy() - reference)) / p.F_N)
-        seconds, times = timed(lambda: command.launch(), device, args.repeats)
+        seconds, times = device_timed(lambda: command.launch(), device, args.repeats)
         record["sweep"].append({"tile": tile, "lanes": lanes, "loads": loads, "force_s": seconds, "times_s": times,
                                 "max_error_over_F_N": error})
         print(f"sweep tile {tile:>5} lanes {lanes:>4} loads {loads}: {seconds * 1e3:7.2f} ms  (|F - default| / F_N "

@@ -1,6 +1,7 @@
 """The scaling study behind ``mdroll bench`` on a tiny size: its fits, records, table and plot."""
 
 import json
+import statistics
 
 import numpy as np
 import pytest
@@ -46,6 +47,18 @@ def test_device_timed_leaves_the_enqueue_outside(device):
         assert 1e-3 <= median < 1.05e-3
     else:
         assert median >= 1e-4
+
+
+def test_force_time_names_its_clock_and_refuses_others(device):
+    """force_time times on the device's clock on CUDA and the wall's on the CPU, says which in its
+    record, and refuses a clock it does not have."""
+    p = Params(L=0.03)
+    point = bench.force_time(p, "sweep", 2, device, 2)
+    assert point["clock"] == ("device events" if device.startswith("cuda") else "wall")
+    assert len(point["force_times_s"]) == 2 and point["force_s"] == statistics.median(point["force_times_s"]) > 0
+    assert bench.force_time(p, "sweep", 2, device, 2, clock="wall")["clock"] == "wall"
+    with pytest.raises(ValueError, match="clock = 'host'"):
+        bench.force_time(p, "sweep", 2, device, 2, clock="host")
 
 
 def test_memory_per_realization_is_affine_in_n():

@@ -69,7 +69,7 @@ RING_UNIT = 256
 BIN_WORDS = 4
 BIN_BYTES = BIN_WORDS * 4 * 33 / 32
 #: The anchor loads its window's springs this many a lane at once, so that their latencies
-#: overlap (4 spilled registers at the thesis layout's 128 a lane).
+#: overlap (four spilled 4 registers at the thesis layout's 128 a lane; two spill none).
 ANCHOR_LOADS = 2
 #: float64 values an L2 cache line holds: a prefetch asks for one line.
 LINE = 16
@@ -359,7 +359,7 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
 
     @wp.func
     def entering_heights(row: wp.uint64, i0: int, lane: int, n: int) -> heights:
-        """The lane's S springs ``i0 + q BD + lane`` (-1e300 past the row: no reach)."""
+        """The lane's S springs ``i0 + q BD + lane`` (-1e300 outside the row: no reach)."""
         loaded = heights()
         for q in range(S):
             i = i0 + q * BD + lane
@@ -530,8 +530,8 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
             # events), then of its leaving springs (without it)
             for side in range(wp.static(1 if DELAY else 2)):
                 loaded = upcoming
-                if side == 0:  # the next chunk's entering springs load while this chunk runs
-                    upcoming = entering_heights(row, c0 + T + outer, lane, n)
+                if side == 0:  # the next chunk's entering springs load while this chunk runs (none after the last)
+                    upcoming = entering_heights(row, wp.where(c0 + T < first + s_end, c0 + T + outer, n), lane, n)
                 else:
                     loaded = entering_heights(row, c0 - near - 1, lane, n)
                 for q in range(S):
