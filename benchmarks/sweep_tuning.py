@@ -7,8 +7,8 @@ floor, and a check of every variant against the default.
 Each time is the median of ``--repeats`` launches on fresh lines on the device's clock
 (``mdroll.bench.device_timed``, the launch recorded outside the clock). The floor is a
 device-to-device copy of the lines (bytes read + written over its time): the sweep moves 16 bytes
-a step (a height in, a force out), as the edge kernel does. The defaults in ``mdroll/ensemble/sweep.py`` (CUDA_MIN_TILE, CUDA_BLOCK_DIM,
-CUDA_LOADS) come from this study.
+a step (a height in, a force out), as the edge kernel does. The defaults in
+``mdroll/ensemble/sweep.py`` (CUDA_MIN_TILE, CUDA_BLOCK_DIM, CUDA_LOADS) come from this study.
 """
 
 import argparse

@@ -19,7 +19,8 @@ Three forms of the same sweep:
 
 * **stream** (:mod:`mdroll.kernels.sweep_stream`, CUDA's default): a block sweeps a long
   segment of a row chunk by chunk, carrying its totals and its pending events from chunk to
-  chunk, so that no chunk re-anchors and each spring is read once entering and once leaving;
+  chunk, so that no chunk re-anchors and each spring is read once (with its delay line; else once
+  entering and once leaving);
 * **tiles** (:func:`sweep_kernel`, CUDA, the default before the stream): the steps of a tile
   are the lanes of a block, which scatter the events and scan them together (below), each tile
   from its own anchor;
