@@ -45,6 +45,9 @@ def test_device_timed_leaves_the_enqueue_outside(device):
     assert len(times) == 5 and median == sorted(times)[2]
     if cuda:
         assert 1e-3 <= median < 1.05e-3
+        # host work longer than the hold would be counted: refused, not measured
+        with pytest.raises(RuntimeError, match="longer than HOLD_S"):
+            bench.device_timed(lambda: time.sleep(2 * bench.HOLD_S), device, 1)
     else:
         assert median >= 1e-4
 

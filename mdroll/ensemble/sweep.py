@@ -133,8 +133,8 @@ def stream_layout(band: int, outer: int, rows: int, steps: int, device: str, blo
                   per_lane: int | None = None, segment: int | None = None, delay: bool | None = None) -> dict | None:
     """The stream form's launch for a widest band of ``band`` springs, a widest reach of
     ``outer`` springs and ``rows x steps`` steps: ``{"block_dim", "per_lane", "max_registers",
-    "ring", "delay", "segment"}``, or None where no ring fits a block's shared memory (or the
-    band passes MAX_STREAM_BAND). The delay line (a spring's leaving event put in the ring when
+    "ring", "delay", "resident", "segment"}`` (``resident``: its blocks a multiprocessor holds),
+    or None where no ring fits a block's shared memory (or the band passes MAX_STREAM_BAND). The delay line (a spring's leaving event put in the ring when
     it enters: one read and one reach a spring instead of two) needs a ring spanning the
     2 outer + 1 steps of a spring's contact, the other only its band's: each layout takes it
     where it still keeps STREAM_MIN_WARPS warps resident. ``block_dim``, ``per_lane`` and
@@ -173,8 +173,7 @@ def stream_layout(band: int, outer: int, rows: int, steps: int, device: str, blo
                          "delay": delayed, "resident": resident}
             if best is None or resident * lanes > best["resident"] * best["block_dim"]:
                 best = candidate
-            if resident * lanes >= 32 * STREAM_MIN_WARPS:
-                best = candidate
+            if resident * lanes >= 32 * STREAM_MIN_WARPS:  # (then it is best: the first to get there)
                 break
         if best is None:
             return None
