@@ -6,9 +6,9 @@ wheel's dynamics (section 5) and ensemble-averaged spectra (section 6). All unit
 """
 
 from .devices import DeviceError, available_devices
-from .ensemble.algorithms import ALGORITHMS
-from .ensemble.force import contact_force
-from .ensemble.prepare import BOUNDARIES, step_range
+from .forces.force import contact_force
+from .forces.registry import ALGORITHMS
+from .forces.steps import BOUNDARIES, step_range
 from .ensemble.lines import rough_lines
 from .ensemble.pipeline import EnsembleResult, run_ensemble
 from ._version import __version__

@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import os
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -131,6 +132,73 @@ def _keep_pool(device: str) -> None:
     wp = warp()
     if wp.is_mempool_supported(device):
         wp.set_mempool_release_threshold(device, 0.5)
+
+
+@dataclass(frozen=True)
+class DeviceLimits:
+    """What a CUDA device's multiprocessors hold, for choosing a kernel's launch layout.
+
+    Attributes
+    ----------
+    multiprocessors : int
+        Streaming multiprocessors on the device.
+    shared_per_multiprocessor : int
+        Shared memory a multiprocessor holds (bytes), all its resident blocks together.
+    shared_per_block : int
+        Shared memory one block may take (bytes, the opt-in maximum).
+    registers_per_multiprocessor : int
+        32-bit registers a multiprocessor holds.
+    lanes_per_multiprocessor : int
+        Threads a multiprocessor keeps resident at once.
+    """
+
+    multiprocessors: int
+    shared_per_multiprocessor: int
+    shared_per_block: int
+    registers_per_multiprocessor: int
+    lanes_per_multiprocessor: int
+
+
+#: The CUDA driver's device attributes (``CUdevice_attribute``) that :func:`device_limits` reads.
+_MAX_THREADS_PER_MULTIPROCESSOR = 39
+_MAX_SHARED_MEMORY_PER_MULTIPROCESSOR = 81
+_MAX_REGISTERS_PER_MULTIPROCESSOR = 82
+
+
+def _driver_attribute(driver, ordinal: int, attribute: int) -> int:
+    """One ``cuDeviceGetAttribute`` of CUDA device ``ordinal``; a DeviceError if the driver refuses."""
+    import ctypes
+
+    handle = ctypes.c_int()
+    value = ctypes.c_int()
+    status = driver.cuDeviceGet(ctypes.byref(handle), ctypes.c_int(ordinal))
+    if status == 0:
+        status = driver.cuDeviceGetAttribute(ctypes.byref(value), ctypes.c_int(attribute), handle)
+    if status != 0:
+        raise DeviceError(f"the CUDA driver gave error {status} for attribute {attribute} of device cuda:{ordinal}")
+    return value.value
+
+
+@functools.cache
+def device_limits(device: str) -> DeviceLimits | None:
+    """The :class:`DeviceLimits` of CUDA device ``device`` (None for the CPU), queried once per
+    device: the multiprocessor count and a block's opt-in shared memory from Warp, the rest from
+    the CUDA driver (``cuDeviceGetAttribute``, through ctypes; Warp has initialised it)."""
+    if not is_cuda(device):
+        return None
+    import ctypes
+    import sys
+
+    wp = warp()
+    info = wp.get_device(device)
+    driver = ctypes.CDLL("nvcuda.dll" if sys.platform == "win32" else "libcuda.so.1")
+    return DeviceLimits(
+        multiprocessors=info.sm_count,
+        shared_per_multiprocessor=_driver_attribute(driver, info.ordinal, _MAX_SHARED_MEMORY_PER_MULTIPROCESSOR),
+        shared_per_block=info.max_shared_memory_per_block,
+        registers_per_multiprocessor=_driver_attribute(driver, info.ordinal, _MAX_REGISTERS_PER_MULTIPROCESSOR),
+        lanes_per_multiprocessor=_driver_attribute(driver, info.ordinal, _MAX_THREADS_PER_MULTIPROCESSOR),
+    )
 
 
 def is_cuda(device: str) -> bool:

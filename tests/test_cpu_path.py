@@ -6,8 +6,9 @@ import pytest
 
 from mdroll import Params, run_ensemble
 from mdroll.devices import warp
-from mdroll.ensemble import buffers, pipeline
-from mdroll.ensemble.fft import fftw_threads, irfft_rows, rfft_rows
+from mdroll import buffers
+from mdroll.ensemble import pipeline
+from mdroll.fft import fftw_threads, irfft_rows, rfft_rows
 from mdroll.plotting import column_extremes
 
 P = Params(L=0.03, n_real=7)

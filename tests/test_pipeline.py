@@ -8,7 +8,7 @@ import pytest
 from reference import direct_force, psd, to_numpy
 
 from mdroll import EnsembleResult, ParameterError, Params, contact_force, rough_lines, run_ensemble, step_range
-from mdroll.ensemble.algorithms import default_algorithm
+from mdroll.forces.registry import default_algorithm
 from mdroll.ensemble.pipeline import H_BOUND_SIGMAS
 
 P = Params(L=0.05, n_real=5)
@@ -52,7 +52,7 @@ def test_decoupled_spectra_are_those_of_the_semi_implicit_euler_response(device,
 
 def test_coupled_windowed_spectra_are_those_of_the_coupled_series(device):
     """Coupled mode: both series through the FFT, the Hann window as a stencil, against numpy."""
-    from mdroll.ensemble.prepare import prepare_lines
+    from mdroll.forces.prepare import prepare_lines
     from mdroll.ensemble.coupled import coupled_series
 
     p = Params(L=0.03, n_real=2)
@@ -97,7 +97,7 @@ def test_coupled_smooth_line_oscillates_at_omega_0_without_energy_growth(device)
     """Semi-implicit Euler on a smooth line started 1 um off equilibrium: frequency omega_0
     (within 1 %, the linearization), no energy growth over 1e5 steps."""
     from mdroll.devices import warp
-    from mdroll.ensemble.prepare import prepare_lines
+    from mdroll.forces.prepare import prepare_lines
     from mdroll.ensemble.coupled import coupled_series
 
     wp = warp()
@@ -135,7 +135,7 @@ def test_coupled_force_is_the_force_at_the_current_indentation(device, algorithm
     """Eq 13 step by step: every recorded F equals the numpy spring sum (eq 10-12; eq 49 for
     edge) at the wheel's position and at the indentation the recorded d'' implies. On CUDA the
     block's lanes share each step's sum, on the CPU one thread does it all."""
-    from mdroll.ensemble.prepare import prepare_lines
+    from mdroll.forces.prepare import prepare_lines
     from mdroll.ensemble.coupled import coupled_series
     from mdroll.validation.references import edge_force
 
@@ -323,7 +323,7 @@ def test_psd_moments_equal_numpy_mean_and_variance(device, steps, window):
 def test_an_algorithm_is_added_by_one_registry_entry(monkeypatch):
     """A registry entry is all an algorithm needs: a copy of direct's entry under a new name,
     without a coupled step, gives direct's forces and spectra, and the coupled mode refuses it."""
-    from mdroll.ensemble.algorithms import REGISTRY
+    from mdroll.forces.registry import REGISTRY
 
     monkeypatch.setitem(REGISTRY, "direct-copy", dataclasses.replace(REGISTRY["direct"], name="direct-copy", coupled=None))
     p = Params(L=0.03, n_real=2)

@@ -20,15 +20,17 @@ from ..devices import cpu_cores, is_cuda, queue_on, resolve_device, to_warp, war
 from ..kernels.dynamics import INTEGRATORS
 from ..kernels.spectra import NOT_FINITE
 from ..params import ParameterError, Params
-from . import buffers
-from .algorithms import algorithm_entry, coupled_entry, default_algorithm
-from .arguments import check_choice, check_flag, check_integer, check_params
+from .. import buffers
+from ..arguments import check_choice, check_flag, check_integer, check_params
+from ..forces.force import launch_force
+from ..forces.prepare import prepare_lines
+from ..forces.prepared import DEFAULT_LEAF_SIZE
+from ..forces.registry import algorithm_entry, coupled_entry, default_algorithm
+from ..forces.steps import BOUNDARIES
 from .batching import check_batch_fits, check_run_fits, default_batch
 from .checkpoint import RunTotals
 from .coupled import coupled_series
-from .force import launch_force
 from .lines import check_seed, realization_indices, rough_lines
-from .prepare import BOUNDARIES, DEFAULT_LEAF_SIZE, prepare_lines
 from ..roughness.models import from_params, line_rms
 from .result import EnsembleResult
 from .spectra import psd_moments_of_batch, series_sums, to_host
@@ -84,8 +86,8 @@ def run_ensemble(
     section 5.1), or the coupled dynamics of eq 13 (``mode="coupled"``; refused for an
     algorithm without a coupled step) -> PSDs (section 6, optional Hann ``window``) -> running
     per-bin mean and variance. Memory stays O(batch x n). ``algorithm``: a registry entry
-    (:data:`~mdroll.ensemble.algorithms.ALGORITHMS`), by default the mode's
-    (:data:`~mdroll.ensemble.algorithms.DEFAULT_ALGORITHMS`). ``leaf_size``: springs per tree leaf.
+    (:data:`~mdroll.forces.registry.ALGORITHMS`), by default the mode's
+    (:data:`~mdroll.forces.registry.DEFAULT_ALGORITHMS`). ``leaf_size``: springs per tree leaf.
 
     ``checkpoint``: a file the running accumulators are written to after every batch,
     atomically (temporary file, then rename). With a checkpoint, batches are also sized by
@@ -322,7 +324,7 @@ class _CpuWorkers:
         return self.pool.map(run, parts) if self.pool else map(run, parts)
 
     def _run(self, work, part):
-        from .fft import fftw_threads
+        from ..fft import fftw_threads
 
         state = self.local.__dict__
         first = not state

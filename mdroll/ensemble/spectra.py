@@ -17,7 +17,7 @@ from ..devices import array_module, cupy_stream, cupy_view, is_cuda, to_warp, wa
 from ..physics import TWO_PI, euler_resonance_phase, hann_window, psd_from_transform
 from ..params import Params
 from ..kernels.spectra import SUM_COLUMNS
-from .fft import rfft_rows
+from ..fft import rfft_rows
 
 
 def wavenumbers(steps: int, dx: float, xp=np):

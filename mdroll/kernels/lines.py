@@ -74,7 +74,7 @@ def line_scales(
 ):
     """The factor on each row's amplitudes that makes the line's RMS ``target`` (m; h0), by
     Parseval before the inverse FFT instead of a pass over the line after: for the unnormalized
-    inverse (``mdroll.ensemble.fft.irfft_rows``)
+    inverse (``mdroll.fft.irfft_rows``)
     ``mean(h^2) = scale^2 (2 sum_{0 < k < n/2} a_k^2 + (a_{n/2} cos phi_{n/2})^2)``, with
     ``sum_of_squares[0] = sum_k a_k^2`` over the whole half spectrum. Only the Nyquist mode
     (``nyquist`` = n/2 when the line has one, else -1) is real, so only its share depends on

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..devices import resolve_device
 from ..ensemble.batching import default_batch
-from ..ensemble.force import contact_force
+from ..forces.force import contact_force
 from ..ensemble.lines import rough_lines
 from ..ensemble.pipeline import progress_bar
 from ..ensemble.result import EnsembleResult

@@ -18,7 +18,7 @@ import threading
 
 import numpy as np
 
-from ..devices import is_cuda, warp
+from .devices import is_cuda, warp
 
 _current = threading.local()
 

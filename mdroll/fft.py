@@ -16,7 +16,7 @@ import threading
 
 import numpy as np
 
-from ..devices import cpu_cores, cupy_stream, cupy_view, is_cuda, warp
+from .devices import cpu_cores, cupy_stream, cupy_view, is_cuda, warp
 from . import buffers
 
 
@@ -129,7 +129,7 @@ def irfft_rows(spectrum, n: int, device: str):
     the transform overwrites it. On CUDA the cached cuFFT plan runs on the spectrum's own memory:
     CuPy's ``irfft`` would first copy a view like this one, and scale by 1/n in a second pass,
     ~1.8 ms of the 7.1 it took at 300 x 2^20 on an H200 (docs/performance.md, v7c).
-    Returns a float64 NumPy array on the CPU (within :func:`mdroll.ensemble.buffers.reused`, the
+    Returns a float64 NumPy array on the CPU (within :func:`mdroll.buffers.reused`, the
     thread's buffer "lines"), a float64 Warp array on CUDA.
     """
     wp = warp()
@@ -157,7 +157,7 @@ def irfft_rows(spectrum, n: int, device: str):
 
 def rfft_rows(x, device: str, name: str = "half spectrum"):
     """Forward real FFT of each row (float64, shape (R, n)): complex128 (R, n // 2 + 1); NumPy on
-    the CPU (within :func:`mdroll.ensemble.buffers.reused`, the thread's buffer ``name``), CuPy
+    the CPU (within :func:`mdroll.buffers.reused`, the thread's buffer ``name``), CuPy
     on CUDA."""
     if is_cuda(device):
         import cupy
