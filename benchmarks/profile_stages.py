@@ -20,7 +20,7 @@ from mdroll.forces.prepare import prepare_lines
 from mdroll.ensemble.lines import random_spectra, rough_lines
 from mdroll.ensemble.checkpoint import RunTotals
 from mdroll.ensemble.pipeline import H_BOUND_SIGMAS
-from mdroll.ensemble.spectra import psd_moments_of_batch, series_sums, to_host
+from mdroll.ensemble.psd import psd_moments_of_batch, series_sums, to_host
 from mdroll.provenance import environment
 
 

@@ -12,7 +12,7 @@ from mdroll.forces.force import launch_force
 from mdroll.forces.prepare import prepare_lines
 from mdroll.forces.registry import REGISTRY
 from mdroll.ensemble.coupled import coupled_series
-from mdroll.ensemble.spectra import psd_moments_of_batch, series_sums
+from mdroll.ensemble.psd import psd_moments_of_batch, series_sums
 
 #: realizations per benchmark and the largest CPU problem (points x realizations) per kind
 REALIZATIONS = {"cpu": 4, "cuda": 64}

@@ -1,7 +1,7 @@
 """The ensemble pipeline: lines -> force -> wheel response -> spectra -> running means, batch by batch.
 
 :func:`run_ensemble` composes the parts, each in its own module: the force algorithms
-(:mod:`.force`), the coupled dynamics (:mod:`.coupled`), the spectra (:mod:`~mdroll.ensemble.spectra`), batch
+(:mod:`.force`), the coupled dynamics (:mod:`.coupled`), the spectra (:mod:`~mdroll.ensemble.psd`), batch
 sizing (:mod:`.batching`), the accumulated totals and their checkpoint (:mod:`.checkpoint`) and
 the result (:mod:`.result`). Here: the batch loop, its stage clock and the progress bar.
 """
@@ -18,7 +18,7 @@ import numpy as np
 
 from ..devices import cpu_cores, is_cuda, queue_on, resolve_device, to_warp, warp
 from ..kernels.dynamics import INTEGRATORS
-from ..kernels.spectra import NOT_FINITE
+from ..kernels.moments import NOT_FINITE
 from ..params import ParameterError, Params
 from .. import buffers
 from ..arguments import check_choice, check_flag, check_integer, check_params
@@ -33,7 +33,7 @@ from .coupled import coupled_series
 from .lines import check_seed, realization_indices, rough_lines
 from ..roughness.models import from_params, line_rms
 from .result import EnsembleResult
-from .spectra import psd_moments_of_batch, series_sums, to_host
+from .psd import psd_moments_of_batch, series_sums, to_host
 
 MODES = ("decoupled", "coupled")
 #: The open-boundary wheel range of an ensemble is set from d0 + H_BOUND_SIGMAS * (the lines' RMS), not from

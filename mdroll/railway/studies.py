@@ -19,7 +19,7 @@ from .. import physics
 from ..forces.force import contact_force
 from ..ensemble.lines import rough_lines
 from ..ensemble.spec import EnsembleSpec, run_specs
-from ..ensemble.spectra import psd_rows, to_host
+from ..ensemble.psd import psd_rows, to_host
 from ..params import Params
 from ..roughness import bands, filters, measured, models
 

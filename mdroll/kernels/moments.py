@@ -174,7 +174,7 @@ def merge_moments(count: wp.float64, added: wp.float64, mean: wp.array(dtype=wp.
     """Chan et al.'s merge of ``added`` samples of per-bin mean and M2 (``moments[k]``) into
     ``count`` samples' ``mean[k]`` and ``m2[k]``, in place: ``delta = mean_b - mean``,
     ``mean += delta added / total``, ``m2 += m2_b + delta^2 count added / total`` (the
-    expressions of :meth:`mdroll.ensemble.spectra.RunningMoments.merge`, in one pass)."""
+    expressions of :meth:`mdroll.ensemble.psd.RunningMoments.merge`, in one pass)."""
     k = wp.tid()
     total = count + added
     batch = moments[k]
