@@ -69,10 +69,10 @@ class RunTotals:
     def spectra_on_host(self, params: Params, wait: bool = True) -> tuple[np.ndarray, ...]:
         """``(q, omega, force mean, its stderr, accel mean, its stderr)`` per bin (rad/m, rad/s,
         N^2 m, N^2 m, (m/s^2)^2 m, (m/s^2)^2 m), computed where the moments live and brought to
-        the host in one copy, into page-locked memory on CUDA (the rows are views of it): six
-        separate copies and host arithmetic on 5e5 bins took ~10 ms of a 30 ms thesis-scale run
-        on an H200 (docs/performance.md, v6), one copy into pageable memory ~3
-        (v7d). ``wait=False``: the copy is only queued (:func:`to_host`)."""
+        the host in one copy, into page-locked memory on CUDA (the rows are views of it), not
+        six separate copies and host arithmetic, nor a copy into pageable memory
+        (docs/performance.md, "Spectra"). ``wait=False``: the copy is only queued
+        (:func:`~mdroll.ensemble.psd.to_host`)."""
         force_mean, force_stderr = self.force.mean_and_stderr()
         accel_mean, accel_stderr = self.accel.mean_and_stderr()
         xp = array_module(force_mean)

@@ -145,7 +145,7 @@ def random_spectra(params: Params, seed: int, realizations, device: str, roughne
 def _power_law_amplitudes(bins: int, k_first: int, k_last: int, H: float, device: str):
     """The amplitudes ``a_k`` of the default spectrum on ``bins`` modes (eq 33, up to the line's
     scale; :func:`mdroll.kernels.lines.mode_amplitudes`) and their sum of squares, on ``device``:
-    the same for every batch of a run, so made once (5e5 powers took ~9 ms on one CPU core)."""
+    the same for every batch of a run, so made once (a power a mode)."""
     from ..kernels.lines import mode_amplitudes
 
     wp = warp()

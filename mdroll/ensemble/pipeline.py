@@ -355,8 +355,8 @@ class _StageClock:
 
     On CUDA each stage is bracketed by two events on the device's stream, read by :meth:`settle`
     after the batch's one wait: the host queues a stage while the device still runs the one
-    before. (Synchronizing around every stage, as before, left the device idle through all the
-    host work between launches: ~2 ms of a 25 ms thesis-scale run on an H200.) A stage's time
+    before (synchronizing around every stage would leave the device idle through all the host
+    work between launches). A stage's time
     is then the device's, from reaching the stage's first command to finishing its last. On
     the CPU launches are synchronous: wall time.
     """

@@ -110,7 +110,7 @@ def series_sums(deviation, params: Params, device: str, decoupled: bool):
 def _impulse_response(steps: int, phi: float, dt: float, device: str):
     """The decoupled wheel's ``A^m b`` for m = 0..steps-1 (:func:`mdroll.kernels.moments.euler_impulse_response`;
     ``phi`` rad, ``dt`` s) as a ``wp.vec2d`` array on ``device``: the same for every batch of a
-    run, so made once (three sines a step took ~45 ms for 10^6 steps on one CPU core)."""
+    run, so made once (three sines a step)."""
     wp = warp()
     weights = wp.empty(steps, dtype=wp.vec2d, device=device)
     wp.launch(euler_impulse_response, dim=steps, inputs=[phi, dt, weights], device=device)
@@ -199,8 +199,8 @@ class RunningMoments:
 
     def add_moments(self, n_b: int, moments) -> None:
         """Merge a batch's (bins, 2) columns of mean and M2 (:func:`psd_moments_of_batch`). On
-        the host in one pass (:func:`mdroll.kernels.moments.merge_moments`): NumPy's seven took
-        ~7 ms for the two spectra of 5e5 bins, for every part of two realizations of a CPU run."""
+        the host in one pass (:func:`mdroll.kernels.moments.merge_moments`), not NumPy's seven,
+        for every part of the realizations of a CPU run."""
         if array_module(self._mean) is not np or n_b == 0:
             self.merge(n_b, moments[:, 0], moments[:, 1])
             return

@@ -31,9 +31,9 @@ sum stays below band (band + 1)), and the values in a 16-bit low limb and a high
 sized from the band so that no limb sum passes 2^31).
 
 Chunk: (1) each lane adds the events of its S entering springs (loaded while the chunk before
-ran, so that their latency overlaps a chunk's work: 2.84-2.86 against 3.06 ms at thesis scale
-on an H200) and, without the delay line, of its S leaving springs to the ring (shared-memory
-int32 atomics), and starts loading the next chunk's entering springs; barrier. (2) each lane reads its S
+ran, so that their latency overlaps a chunk's work) and, without the delay line, of its S
+leaving springs to the ring (shared-memory int32 atomics), and starts loading the next chunk's
+entering springs; barrier. (2) each lane reads its S
 bins and composes their transitions into one affine map of the state (``N -> N + a``,
 ``P -> P - k N + b``, ``Z -> Z + 2 k P - k^2 N + c``, ``Y -> Y + y`` over k steps): warp
 shuffles scan the lanes' maps, the warps' totals go through shared memory (one barrier), and
@@ -65,8 +65,8 @@ COUNT_SHIFT = 16
 MAX_STREAM_BAND = 16382
 #: A chunk's ring needs T + band bins (T + 2 outer + 1 with the delay line); it comes in multiples
 #: of RING_UNIT bins, each bin four int32 words, one in each of four arrays (a warp's atomics on
-#: consecutive bins then meet 32 banks, not 8 as with a bin's words together: 3.79 against 4.09
-#: ms at thesis scale), padded one word in 32.
+#: consecutive bins then meet 32 banks, not 8 as with a bin's words together), padded one word
+#: in 32.
 RING_UNIT = 256
 BIN_WORDS = 4
 BIN_BYTES = BIN_WORDS * 4 * 33 / 32
@@ -436,7 +436,7 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
             # into its first two words (its other two cleared), and the warp then writes its
             # steps' forces out in order, adjacent lanes to adjacent steps, clearing those words
             # (a lane storing its own S consecutive steps would write 8 bytes of each 32-byte
-            # sector a store: 4.09 against 3.0 ms without any store at thesis scale)
+            # sector a store)
             for q in range(S):
                 at = slot(head, lane * S + q)
                 state = step_bin(state, base, at, near)
