@@ -8,8 +8,10 @@ CuPy is installed.
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import functools
 import os
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,26 +44,25 @@ def warp():
 
 
 @functools.cache
-def cuda_driver_present() -> bool:
-    """Whether the NVIDIA CUDA driver library loads (as Warp looks for it)."""
-    import ctypes
-    import sys
-
+def _cuda_driver():
+    """The NVIDIA CUDA driver library (ctypes), loaded as Warp looks for it, or None."""
     names = ("nvcuda.dll",) if sys.platform == "win32" else ("libcuda.so", "libcuda.so.1")
     for name in names:
         try:
-            ctypes.CDLL(name)
-            return True
+            return ctypes.CDLL(name)
         except OSError:
             pass
-    return False
+    return None
+
+
+def cuda_driver_present() -> bool:
+    """Whether the NVIDIA CUDA driver library loads (as Warp looks for it)."""
+    return _cuda_driver() is not None
 
 
 @contextlib.contextmanager
 def _native_stderr_silenced():
     """Send what native code writes to file descriptor 2 to /dev/null for the duration."""
-    import sys
-
     sys.stderr.flush()
     saved = os.dup(2)
     try:
@@ -167,8 +168,6 @@ _MAX_REGISTERS_PER_MULTIPROCESSOR = 82
 
 def _driver_attribute(driver, ordinal: int, attribute: int) -> int:
     """One ``cuDeviceGetAttribute`` of CUDA device ``ordinal``; a DeviceError if the driver refuses."""
-    import ctypes
-
     handle = ctypes.c_int()
     value = ctypes.c_int()
     status = driver.cuDeviceGet(ctypes.byref(handle), ctypes.c_int(ordinal))
@@ -183,15 +182,13 @@ def _driver_attribute(driver, ordinal: int, attribute: int) -> int:
 def device_limits(device: str) -> DeviceLimits | None:
     """The :class:`DeviceLimits` of CUDA device ``device`` (None for the CPU), queried once per
     device: the multiprocessor count and a block's opt-in shared memory from Warp, the rest from
-    the CUDA driver (``cuDeviceGetAttribute``, through ctypes; Warp has initialised it)."""
+    the CUDA driver (``cuDeviceGetAttribute``, through ctypes)."""
     if not is_cuda(device):
         return None
-    import ctypes
-    import sys
-
-    wp = warp()
-    info = wp.get_device(device)
-    driver = ctypes.CDLL("nvcuda.dll" if sys.platform == "win32" else "libcuda.so.1")
+    info = warp().get_device(device)
+    driver = _cuda_driver()
+    if driver is None or driver.cuInit(0) != 0:
+        raise DeviceError(f"device {device!r}: the CUDA driver does not load or initialise")
     return DeviceLimits(
         multiprocessors=info.sm_count,
         shared_per_multiprocessor=_driver_attribute(driver, info.ordinal, _MAX_SHARED_MEMORY_PER_MULTIPROCESSOR),

@@ -212,6 +212,24 @@ def test_stream_layout_keeps_the_multiprocessor_busy_as_the_band_grows():
     assert (cpu["block_dim"], cpu["ring"], cpu["delay"]) == (1, 2112, True)
 
 
+def test_device_limits_are_queried_from_the_device(device):
+    """The CPU has no multiprocessor limits (None: its own layout); a CUDA device reports its
+    own, consistent with Warp's, and the thesis's band has a stream layout within them."""
+    import warp as wp
+
+    from mdroll.devices import device_limits
+
+    limits = device_limits(device)
+    if device == "cpu":
+        assert limits is None
+        return
+    assert limits.multiprocessors == wp.get_device(device).sm_count > 0
+    assert 0 < limits.shared_per_block <= limits.shared_per_multiprocessor
+    assert limits.registers_per_multiprocessor > 0 and limits.lanes_per_multiprocessor >= 1024
+    assert device_limits(device) is limits  # queried once
+    assert stream_layout(42, 1034, 300, 2**20, limits) is not None
+
+
 @pytest.mark.parametrize("band,outer", [(42, 1034), (110, 2700), (2050, 50000), (4100, 100000)])
 def test_stream_layout_fits_the_limits_of_another_gpu(band, outer):
     """On a GPU with less shared memory and fewer lanes a multiprocessor, each layout's ring fits

@@ -115,7 +115,8 @@ REGISTRY: dict[str, Algorithm] = {
     )
 }
 
-#: The algorithms' names.
+#: The algorithms' names (``algorithm=`` everywhere), in the registry's order: one entry of
+#: :data:`REGISTRY` each.
 ALGORITHMS = tuple(REGISTRY)
 #: The algorithm each mode takes by default (:func:`mdroll.contact_force`, whose indentation is
 #: fixed, takes the decoupled one; :func:`mdroll.run_ensemble`, :class:`mdroll.EnsembleSpec` and

@@ -11,6 +11,9 @@ from ..fft import fast_length
 from ..params import ParameterError, Params
 from .indenter import indenter_curvature, reach
 
+#: The boundaries a line may have (``boundary=`` everywhere): ``open``, the thesis's, where the
+#: wheel keeps its window of possible contact on the line, and ``periodic``, where it visits
+#: every spring and the line wraps (:func:`step_range`).
 BOUNDARIES = ("open", "periodic")
 
 
