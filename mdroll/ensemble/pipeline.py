@@ -1,7 +1,7 @@
 """The ensemble pipeline: lines -> force -> wheel response -> spectra -> running means, batch by batch.
 
 :func:`run_ensemble` composes the parts, each in its own module: the force algorithms
-(:mod:`.force`), the coupled dynamics (:mod:`.coupled`), the spectra (:mod:`~mdroll.ensemble.psd`), batch
+(:mod:`mdroll.forces`), the coupled dynamics (:mod:`.coupled`), the spectra (:mod:`.psd`), batch
 sizing (:mod:`.batching`), the accumulated totals and their checkpoint (:mod:`.checkpoint`) and
 the result (:mod:`.result`). Here: the batch loop, its stage clock and the progress bar.
 """
@@ -293,12 +293,12 @@ class _CpuWorkers:
     """The CPU path's threads: each part of a batch (:data:`CPU_CHUNK` realizations) is run
     through lines, force and spectra by the next free one of ``threads`` Python threads (Warp's
     CPU launches and FFTW release the GIL; each thread's FFTs take one FFTW thread), into
-    arrays the thread keeps from part to part (:mod:`.buffers`); the parts' moments are merged
+    arrays the thread keeps from part to part (:mod:`mdroll.buffers`); the parts' moments are merged
     in their order, so the result does not depend on the number of threads or on which thread
     ran which part.
 
     ``serial`` is a lock that one thread holds at a time: Warp 1.19 keeps the shared memory of a
-    CPU tile kernel (the coupled dynamics; the sweep's tiles, which only CUDA runs by default)
+    CPU tile kernel (the coupled dynamics; the sweep's stream, which only CUDA runs by default)
     behind one pointer per module, so two of them must not run at once (they crashed); the
     decoupled force kernels are plain launches on the CPU. ``loading`` is held through each
     thread's first part: Warp 1.19 loads a module's CPU code at its first launch without a

@@ -80,7 +80,7 @@ def complex_rows(spectrum, device: str):
         return wp.from_dlpack(spectrum.view(cupy.float64).reshape(rows, bins, 2), dtype=wp.vec2d)
     if spectrum.strides[-1] != spectrum.itemsize:
         spectrum = np.ascontiguousarray(spectrum)
-    # a view, also of rows padded to alignment (the FFT's buffers, :mod:`.buffers`)
+    # a view, also of rows padded to alignment (the FFT's buffers, :mod:`mdroll.buffers`)
     return wp.array(spectrum.view(np.float64).reshape(rows, bins, 2), dtype=wp.vec2d, device="cpu", copy=False)
 
 
