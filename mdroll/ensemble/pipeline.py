@@ -29,7 +29,7 @@ from .coupled import coupled_series
 from .force import launch_force
 from .lines import check_seed, realization_indices, rough_lines
 from .prepare import BOUNDARIES, DEFAULT_LEAF_SIZE, prepare_lines
-from ..roughness.models import from_params, line_rms
+from ..roughness.line_grid import from_params, line_rms
 from .result import EnsembleResult
 from .spectra import psd_moments_of_batch, series_sums, to_host
 
