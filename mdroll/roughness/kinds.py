@@ -92,7 +92,7 @@ class RoughnessSpectrum:
     def profile_psd(self, q, geike_lambda: float = GEIKE_LAMBDA) -> np.ndarray:
         """C_p(q) of a line scan along the rail (m^3, two-sided): the spectrum itself for
         "profile" and, by the rail assumption, for "mdr"; for "areal" the integral across the
-        track ``2 integral_0^inf C_2D(q cosh t) q cosh t dt`` (scipy.integrate.quad_vec)."""
+        track ``2 integral_0^inf C_2D(q cosh t) q cosh t dt`` (:func:`scipy.integrate.quad_vec`)."""
         q = np.abs(np.asarray(q, dtype=np.float64))
         if self.kind != "areal":
             return self.psd(q)
