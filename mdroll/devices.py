@@ -13,9 +13,7 @@ import os
 
 import numpy as np
 
-
-class DeviceError(ValueError):
-    """A device that does not exist, or a CUDA run without the packages it needs."""
+from .errors import DeviceError
 
 
 @functools.cache
