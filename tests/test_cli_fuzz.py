@@ -1,4 +1,4 @@
-"""Generated inputs for the command line (issue 16): whatever ``--set`` values and TOML files a
+"""Generated inputs for the command line: whatever ``--set`` values and TOML files a
 user writes, ``mdroll`` ends with exit 0 and finite outputs, or exit 2 and one line on stderr;
 never a traceback, a hang or another exit code.
 
@@ -18,10 +18,11 @@ from hypothesis import strategies as st
 
 import mdroll.plotting
 from mdroll import EnsembleResult, Params, cli
+from mdroll.cli.common import PARAM_NAMES
 from mdroll.ensemble import batching
 from mdroll.params import ROUGHNESS_LEVELS, ROUGHNESS_MODELS, SPECTRUM_KINDS, TEXT_FIELDS
 
-NAMES = cli.PARAM_NAMES
+NAMES = PARAM_NAMES
 TINY = {"L": 0.025, "dx": 2.5e-5}
 DEFAULTS = {**Params().as_dict(), **TINY, "q_max": math.pi / TINY["dx"], "n_real": 1}
 SPECIAL = [0.0, -1.0, 1e-300, 1e300, 1e100, float("nan"), float("inf"), -float("inf"), 5e-324]
