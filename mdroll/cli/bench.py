@@ -9,8 +9,8 @@ from .common import output_dir, output_options, progress_printer, size_options
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("bench", help="scaling study of the three algorithms: bench.json, bench.png and a table")
-    size_options(p, quick="small sizes, minutes on a 2-core CPU (default)", full="the GPU machine's study")
+    p = sub.add_parser("bench", help="scaling study of the force algorithms: bench.json, bench.png and a table")
+    size_options(p, quick="sizes for a CPU (default)", full="the full study's sizes (GPU)")
     p.add_argument("--device", action="append", help="cpu, cuda or cuda:N (repeatable; default every available one)")
     output_options(p)
 

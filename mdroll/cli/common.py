@@ -21,7 +21,7 @@ from ..params import TEXT_FIELDS, Params
 
 PARAM_NAMES = tuple(f.name for f in dataclasses.fields(Params))
 PRESETS = {
-    # a small ensemble that finishes in seconds on a laptop CPU
+    # a small ensemble for a laptop CPU
     "quick": {"L": 0.2, "n_real": 8},
 }
 #: The lock file a live run holds (fcntl.flock) in its output directory.

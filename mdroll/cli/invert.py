@@ -53,7 +53,7 @@ def add_parser(sub) -> None:
                    "the grid's, 1 quick, 3 full)")
     p.add_argument("--correction", choices=["simulated", "none"], help="simulated: the closed-form model times "
                    "the ratio that simulations at the estimate measure, iterated (the default for mdroll spectra "
-                   "and the round trip: the closed form alone biases H by about -0.008); none: the closed form "
+                   "and the round trip, as the closed form alone biases H: docs/inverse.md); none: the closed form "
                    "alone (the default for tables)")
     p.add_argument("--correction-passes", type=int, metavar="K", help="passes of each correction ensemble "
                    "(default 32, or more to roll 80 m)")

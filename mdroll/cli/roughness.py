@@ -14,7 +14,7 @@ def add_parser(sub) -> None:
     tasks = p.add_subparsers(dest="task", required=True, parser_class=Parser)
     check = tasks.add_parser("check", help="line spectra, dB round trip, measured profile, eq 39 high band, eq 63, "
                              "coupled vs decoupled, contact filter: roughness.json; exit 1 on a failure")
-    size_options(check, quick="CPU sizes, about a minute (default)", full="thesis-scale ensembles (GPU)")
+    size_options(check, quick="sizes for a CPU (default)", full="thesis-scale ensembles (GPU)")
     check.add_argument("--only", action="append", metavar="NAME", help="run only this study (repeatable): "
                        "lines, round_trip, measured_profile, high_band, eq63, dynamics, contact_filter")
     check.add_argument("--seed", type=int, default=0)

@@ -16,7 +16,7 @@ def add_parser(sub) -> None:
                        "of claims with verdicts; `study list`, `study all`, `study report DIR`")
     p.add_argument("name", help="a study (see `mdroll study list`), 'list', 'all' or 'report'")
     p.add_argument("folder", nargs="?", help="report only: the folder of study results to assemble")
-    size_options(p, quick="small ensembles, under 2 minutes a study on a CPU (default)",
+    size_options(p, quick="small ensembles for a CPU (default)",
                  full="the thesis's ensembles: 300 realizations (chapters 4-5), 100 per point (chapter 6); GPU")
     p.add_argument("--test", dest="size", action="store_const", const="test", help="tiny ensembles (the test suite)")
     p.add_argument("--seed", type=int, default=0, help="master seed (default 0)")

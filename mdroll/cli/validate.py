@@ -14,7 +14,7 @@ from .common import check_file_path, cluster_options, cluster_runner, output_dir
 
 def add_parser(sub) -> None:
     p = sub.add_parser("validate", help="check the thesis's analytic formulas against ensembles; exit 1 on a failure")
-    size_options(p, quick="small ensembles, minutes on a 2-core CPU (default)", full="thesis-scale ensembles (GPU)")
+    size_options(p, quick="small ensembles for a CPU (default)", full="thesis-scale ensembles (GPU)")
     p.add_argument("--only", action="append", metavar="NAME", help="run only this check (repeatable): "
                    + ", ".join(CHECKS))
     p.add_argument("--check", action="append", default=[], metavar="MODULE:FUNCTION",
