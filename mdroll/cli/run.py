@@ -70,11 +70,11 @@ def execute(args) -> int:
         meta, _ = read_checkpoint(out / CHECKPOINT)
         # the checkpoint's run, with anything given on the command line on top (compared when resuming)
         params = build_params(args, base=meta["params"])
-        settings = {k: meta[k] if getattr(args, k) is None else getattr(args, k) for k in RUN_DEFAULTS}
+        settings = _settings(args, meta)
         realizations = meta["realizations"] if args.realizations is None and args.first is None else _realizations(args, params)
     else:
         params = build_params(args)
-        settings = {k: v if getattr(args, k) is None else getattr(args, k) for k, v in RUN_DEFAULTS.items()}
+        settings = _settings(args, RUN_DEFAULTS)
         realizations = _realizations(args, params)
     _refuse_outside_validity(args, params)
     memory = None
@@ -102,7 +102,7 @@ def _run_distributed(args) -> int:
         (spec,) = saved_specs(out / "units")
     else:
         params = build_params(args)
-        settings = {k: v if getattr(args, k) is None else getattr(args, k) for k, v in RUN_DEFAULTS.items()}
+        settings = _settings(args, RUN_DEFAULTS)
         indices = _realizations(args, params)
         if not isinstance(indices, range):
             raise UsageError(f"--realizations {args.realizations}: the number of realizations must be at least 1")
@@ -113,6 +113,11 @@ def _run_distributed(args) -> int:
         (result,) = runner.run_specs([spec], device=device, progress=not args.no_progress)
     write_outputs(result, out)
     return 0
+
+
+def _settings(args, base: dict) -> dict:
+    """The run's settings (the keys of :data:`RUN_DEFAULTS`): those given on the command line, else ``base``'s."""
+    return {k: base[k] if getattr(args, k) is None else getattr(args, k) for k in RUN_DEFAULTS}
 
 
 def _refuse_outside_validity(args, params) -> None:
