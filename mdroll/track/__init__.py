@@ -1,7 +1,7 @@
 """Track models in the frequency domain: a Timoshenko rail on pads, sleepers and ballast,
 continuously or discretely supported; receptances, decay rates and the linear wheel/rail chain.
 
-numpy and scipy only; imports :mod:`mdroll.physics` and :mod:`mdroll.params` and nothing above.
+numpy only; imports :mod:`mdroll.physics` and :mod:`mdroll.params` and nothing above.
 """
 
 from .bands import REF_FORCE, REF_FORCE_MICRO, REF_VELOCITY, band_levels, per_hz_one_sided, third_octave_centres

@@ -8,12 +8,12 @@ response of railway track to high frequency vertical excitation", J. Mech. Eng. 
 Knothe & Grassie (1993), "Modelling of railway track and vehicle/track interaction at high
 frequencies", Vehicle System Dynamics 22; Thompson (2009), *Railway Noise and Vibration*, ch. 3.
 
-The beam (deflection w, rotation phi, foundation stiffness per length K_f(omega)):
+The beam (deflection w, rotation phi, foundation stiffness per length K_f(omega))::
 
     kappa G A (w'' - phi') + rho A omega^2 w - K_f w = -F delta(x)
     E I phi'' + kappa G A (w' - phi) + rho I omega^2 phi = 0
 
-In the wavenumber domain (``w(x) = integral W(k) exp(i k x) dk / (2 pi)``) W = F D(k^2) / P(k^2),
+In the wavenumber domain (``w(x) = integral W(k) exp(i k x) dk / (2 pi)``) W = F D(k^2) / P(k^2)::
 
     D(s) = E I s + kappa G A - rho I omega^2
     P(s) = kappa G A E I s^2 - (kappa G A rho I omega^2 + E I (rho A omega^2 - K_f)) s
@@ -41,7 +41,7 @@ def complex_stiffness(k, eta):
 
 
 def support_stiffness(omega, track):
-    """Dynamic stiffness of one support (N/m): the pad in series with the sleeper mass on ballast,
+    """Dynamic stiffness of one support (N/m): the pad in series with the sleeper mass on ballast::
 
         K_s = k_p* (k_b* - m_s omega^2) / (k_p* + k_b* - m_s omega^2),   k* = k (1 + i eta).
 
@@ -62,8 +62,9 @@ def foundation_stiffness(omega, track):
 def wavenumbers(omega, track, K_f):
     """Wavenumbers k_j (rad/m, Im k_j >= 0) and residues A_j (1/N) of the Timoshenko rail on a
     foundation of stiffness per length K_f (N/m^2, complex, broadcast with omega): the two roots
-    s_j = k_j^2 of P(s) (module docstring), with the rail's loss factor on E I and kappa G A. Where a root is real (an undamped travelling wave), k_j = -sqrt(s_j): the
-    wave exp(i (omega t - |k_j| |x|)) that carries energy away from the force.
+    s_j = k_j^2 of P(s) (module docstring), with the rail's loss factor on E I and kappa G A.
+    Where a root is real (an undamped travelling wave), k_j = -sqrt(s_j): the wave
+    exp(i (omega t - |k_j| |x|)) that carries energy away from the force.
 
     Returns ``(k, A)``, each of shape ``omega.shape + (2,)``.
     """

@@ -5,7 +5,7 @@ A roughness of wavenumber q passes the wheel at f = v q / (2 pi), omega = v q. T
 linearized Hertz/MDR spring k_c = 2 E* a (:func:`mdroll.physics.contact_stiffness`) with the MDR
 contact filter of eq 39: a mode of amplitude r drives the blocked contact with the force
 ``k_c sinc(q a) r`` (``E* W(q) = k_c sinc(q a)``, :func:`mdroll.physics.contact_window_transform`).
-With wheel, rail and contact in series,
+With wheel, rail and contact in series::
 
     F = sinc(q a) r / (alpha_W + alpha_R + alpha_C),   alpha_C = 1 / k_c,
     v_W = i omega alpha_W F,   v_R = i omega alpha_R F

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from mdroll.params import ParameterError
+
 from .beam import continuous_decay_rate, continuous_receptance
 from .periodic import discrete_decay_rate, discrete_receptance
 
@@ -24,7 +26,7 @@ def receptance(track, f, position="sleeper"):
     positions): zero for the rigid track, :func:`~mdroll.track.continuous_receptance` or
     :func:`~mdroll.track.discrete_receptance` (x0 = 0 or d / 2)."""
     if position not in POSITIONS:
-        raise ValueError(f"position = {position!r} is not allowed: choose one of {list(POSITIONS)}")
+        raise ParameterError(f"position = {position!r} is not allowed: choose one of {list(POSITIONS)}")
     f = np.asarray(f, dtype=np.float64)
     if track.support == "rigid":
         return np.zeros(f.shape, dtype=complex)

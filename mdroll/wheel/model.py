@@ -4,7 +4,7 @@ Time dependence ``exp(i omega t)``; receptance = displacement per force (m/N), f
 towards the wheel's centre. The modal wheel (Thompson, *Railway Noise and Vibration*, 2009,
 ch. 5; Thompson & Jones 2000, J. Sound Vib. 231) adds to the unsprung mass M on the primary
 suspension k_s (1 + i eta_s) the flexible modes n of natural frequency f_n, modal mass m_n (the
-mass of the mode at the contact point) and damping ratio zeta_n:
+mass of the mode at the contact point) and damping ratio zeta_n::
 
     alpha_W(omega) = 1 / (k_s (1 + i eta_s) - M omega^2)
                      + sum_n 1 / (m_n (omega_n^2 - omega^2 + 2 i zeta_n omega_n omega)).
@@ -74,7 +74,8 @@ class Wheel:
             raise ParameterError(f"wheel.kind = {self.kind!r} is not allowed: choose one of {list(KINDS)}")
         for name in ("mass", "suspension_stiffness"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and value > 0):
+            real = isinstance(value, (int, float)) and not isinstance(value, bool)
+            if not (real and math.isfinite(value) and value > 0):
                 raise ParameterError(f"wheel.{name} = {value!r} is not allowed: it must be positive and finite")
         if not (isinstance(self.suspension_loss, (int, float)) and math.isfinite(self.suspension_loss)
                 and self.suspension_loss >= 0):
