@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from mdroll import physics
-from mdroll.bem import (elliptical_ratio, extruded, generator, hertz_elliptical, hertz_max_pressure, hertz_pressure,
-                        roll, self_affine, solve)
+from mdroll.bem import elliptical_ratio, extruded, generator, hertz_elliptical, roll, self_affine, solve
 from mdroll.bem.halfspace import HalfSpace, love_coefficient
+from mdroll.bem.hertz import sphere_errors
 from mdroll.params import ParameterError
 
 E_STAR = physics.effective_modulus(210e9, 0.3)
@@ -29,27 +29,7 @@ def _grid(n, dx):
 
 
 def hertz_errors(cells, device="cpu"):
-    """Relative errors of the smooth sphere at ``cells`` across the Hertz diameter, on a grid
-    1.25 x wider: force at the approach, approach at the Hertz load, contact radius from the area,
-    peak pressure, and the pressure inside r < 0.9 a (relative to p0)."""
-    a = physics.contact_radius(D, R)
-    dx = 2.0 * a / cells
-    n = int(1.25 * cells) // 2 * 2
-    flat = np.zeros((n, n))
-    force = physics.hertz_force(D, E_STAR, R)
-    by_approach = solve(flat, dx, R, E_star=E_STAR, approach=D, device=device)
-    by_load = solve(flat, dx, R, E_star=E_STAR, load=force, device=device)
-    x = _grid(n, dx)
-    r = np.hypot(x[:, None], x[None, :])
-    p0 = hertz_max_pressure(D, E_STAR, R)
-    inner = r < 0.9 * a
-    return {
-        "force": by_approach.force / force - 1.0,
-        "approach": by_load.approach / D - 1.0,
-        "radius": math.sqrt(by_approach.area / math.pi) / a - 1.0,
-        "max_pressure": by_approach.pressure.max() / p0 - 1.0,
-        "profile": np.abs(by_approach.pressure - hertz_pressure(r, D, E_STAR, R))[inner].max() / p0,
-    }
+    return sphere_errors(cells, E_STAR, R, D, device)
 
 
 def test_halfspace_is_the_direct_sum_of_love_coefficients(device):

@@ -30,7 +30,7 @@ def _love_term(s, t_plus, t_minus):
 def love_coefficient(x, y, half_x, half_y, E_star):
     """Love's influence coefficient: the normal surface displacement at (x, y) of an elastic
     half-space under a unit pressure uniform on the rectangle ``|x'| <= c, |y'| <= b`` (Johnson,
-    *Contact Mechanics*, 1985, section 3.2), for two bodies of composite modulus E*:
+    *Contact Mechanics*, 1985, section 3.2), for two bodies of composite modulus E*::
 
         K = 1 / (pi E*) [ (x + c) ln(((y + b) + r(x+c, y+b)) / ((y - b) + r(x+c, y-b)))
                         + (y + b) ln(((x + c) + r(x+c, y+b)) / ((x - c) + r(x-c, y+b)))

@@ -80,3 +80,35 @@ def hertz_elliptical(d, E_star, radius_x, radius_y):
     p0 = d * E_star / (b * big_k)
     semi_x, semi_y = (a, b) if radius_x >= radius_y else (b, a)
     return semi_x, semi_y, p0, 2.0 / 3.0 * math.pi * a * b * p0
+
+
+def sphere_errors(cells, E_star, R, d, device="cpu"):
+    """The solver's relative errors on Hertz's sphere at approach d with ``cells`` cells across the
+    contact diameter 2a, on a grid 1.25 x wider: ``force`` at the approach, ``approach`` at Hertz's
+    load, ``radius`` sqrt(area / pi), ``max_pressure``, and ``profile``, the largest pressure
+    error inside r < 0.9 a relative to p0 (the edge, where p ~ sqrt(a - r), converges slower).
+
+    Parameters: ``cells``, ``E_star`` (Pa), ``R`` (m), ``d`` (m), ``device``. Returns a dict of
+    floats (dimensionless).
+    """
+    from ..physics import contact_radius, hertz_force
+    from .solver import solve
+
+    a = contact_radius(d, R)
+    dx = 2.0 * a / cells
+    n = int(1.25 * cells) // 2 * 2
+    flat = np.zeros((n, n))
+    force = hertz_force(d, E_star, R)
+    by_approach = solve(flat, dx, R, E_star=E_star, approach=d, device=device)
+    by_load = solve(flat, dx, R, E_star=E_star, load=force, device=device)
+    x = (np.arange(n) - 0.5 * (n - 1)) * dx
+    r = np.hypot(x[:, None], x[None, :])
+    p0 = hertz_max_pressure(d, E_star, R)
+    return {
+        "force": float(by_approach.force / force - 1.0),
+        "approach": float(by_load.approach / d - 1.0),
+        "radius": math.sqrt(by_approach.area / math.pi) / a - 1.0,
+        "max_pressure": float(by_approach.pressure.max() / p0 - 1.0),
+        "profile": float(np.abs(by_approach.pressure - hertz_pressure(r, d, E_star, R))[r < 0.9 * a].max() / p0),
+        "iterations": [by_approach.iterations, by_load.iterations],
+    }

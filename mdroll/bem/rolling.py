@@ -19,8 +19,8 @@ import numpy as np
 
 from ..params import ParameterError
 from .halfspace import HalfSpace
-from .solver import (MAX_ITERATIONS, TOLERANCE, _host, _positive, array_module, check_problem, constrained_cg,
-                     indenter_gap, initial_pressure, summarize)
+from .solver import (MAX_ITERATIONS, TOLERANCE, array_module, check_problem, check_stopping, constrained_cg,
+                     indenter_gap, initial_pressure, summarize, to_host)
 
 
 @dataclass
@@ -88,7 +88,7 @@ def roll(surface, dx, radius, *, E_star, steps, approach=None, load=None, window
     batched = len(shape) == 3
     _, n, dx, radius, radius_y, E_star, control, load_control = check_problem(
         np.empty((shape[0] if batched else 1, n, n)), dx, radius, E_star, approach, load, radius_y)
-    tol = _positive("tol", tol)
+    tol, max_iter = check_stopping(tol, max_iter)
     xp, context = array_module(device)
     rows = []
     with context:
@@ -110,7 +110,7 @@ def roll(surface, dx, radius, *, E_star, steps, approach=None, load=None, window
             rows.append(summarize(pressure, d, iterations, residual, tol, dx))
     fields = {name: np.stack([getattr(r, name) for r in rows], axis=-1)
               for name in ("force", "approach", "area", "iterations", "residual", "converged")}
-    last = _host(pressure)
+    last = to_host(pressure)
     if not batched:
         fields = {name: value[0] for name, value in fields.items()}
         last = last[0]

@@ -28,6 +28,7 @@ import numpy as np
 
 from ..devices import DeviceError
 from ..params import ParameterError
+from ..physics import hertz_indentation
 from .halfspace import HalfSpace
 
 #: Default convergence tolerance: the relative change of the pressure in one iteration,
@@ -115,6 +116,13 @@ def check_problem(heights, dx, radius, E_star, approach, load, radius_y):
     return len(shape) == 3, shape[-1], dx, radius, radius_y, E_star, control, load is not None
 
 
+def check_stopping(tol, max_iter):
+    """The tolerance (positive) and the iteration cap (a positive int), or a ParameterError."""
+    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
+        raise ParameterError(f"max_iter must be a positive integer, got {max_iter!r}")
+    return _positive("tol", tol), int(max_iter)
+
+
 def _sum(a):
     return a.sum(axis=(-2, -1))
 
@@ -130,8 +138,6 @@ def initial_pressure(op, separation, control, load_control, radius_mean):
     ``k = <w, K w> / <K w, K w>`` that best cancels the overlap (displacement control)."""
     xp, dx = op.xp, op.dx
     if load_control:
-        from ..physics import hertz_indentation
-
         lowest = separation.min(axis=(-2, -1))
         reach = xp.asarray(hertz_indentation(control, op.E_star, radius_mean)) + lowest
         overlap = xp.maximum(_column(reach) - separation, 0.0)
@@ -236,9 +242,7 @@ def solve(heights, dx, radius, *, E_star, approach=None, load=None, radius_y=Non
     """
     batched, n, dx, radius, radius_y, E_star, control, load_control = check_problem(
         heights, dx, radius, E_star, approach, load, radius_y)
-    tol = _positive("tol", tol)
-    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
-        raise ParameterError(f"max_iter must be a positive integer, got {max_iter!r}")
+    tol, max_iter = check_stopping(tol, max_iter)
     xp, context = array_module(device)
     with context:
         op = HalfSpace(n, dx, E_star, xp=xp)
@@ -250,22 +254,22 @@ def solve(heights, dx, radius, *, E_star, approach=None, load=None, radius_y=Non
             start = xp.asarray(initial, dtype=xp.float64).reshape(-1, n, n)
         p, d, iterations, residual = constrained_cg(op, separation, control, load_control, start, tol, max_iter)
         result = summarize(p, d, iterations, residual, tol, dx)
-    pressure = result.pressure if type(heights).__module__.startswith("cupy") else _host(result.pressure)
+    pressure = result.pressure if type(heights).__module__.startswith("cupy") else to_host(result.pressure)
     return unbatch(result, pressure, batched)
 
 
-def _host(array):
+def to_host(array):
+    """A NumPy copy of a CuPy array (NumPy arrays and scalars as they are)."""
     return array.get() if hasattr(array, "get") else np.asarray(array)
 
 
 def summarize(pressure, approach, iterations, residual, tol, dx) -> Contact:
     """A batched :class:`Contact` from the solver's state (scalars on the host, pressure as is)."""
-    xp = type(pressure).__module__.startswith("cupy") and __import__("cupy") or np
-    force = _host(_sum(pressure)) * dx * dx
-    area = _host(_sum(pressure > 0)) * dx * dx
-    residual = _host(residual)
-    return Contact(force=force, approach=_host(approach) * np.ones_like(force), area=area, pressure=pressure,
-                   iterations=_host(iterations), residual=residual, converged=residual < tol)
+    force = to_host(_sum(pressure)) * dx * dx
+    area = to_host(_sum(pressure > 0)) * dx * dx
+    residual = to_host(residual)
+    return Contact(force=force, approach=to_host(approach) * np.ones_like(force), area=area, pressure=pressure,
+                   iterations=to_host(iterations), residual=residual, converged=residual < tol)
 
 
 def unbatch(result: Contact, pressure, batched: bool) -> Contact:
