@@ -1,6 +1,6 @@
 """The simulated correction of the closed-form model: what eq 40 and eq 48 leave out.
 
-The forward model of :mod:`mdroll.inverse.model` is the linear part of the contact force (eq
+The forward model of :mod:`mdroll.inverse.forward_model` is the linear part of the contact force (eq
 40) with the contact-radius jitter, and the quadratic low band (eq 48). The exact MDR force of
 the simulator has more: the non-linear part of the contact force, which tilts the high band
 (physics.md section 7: eq 40 within 1 % to 24 q_min, 6 % to 96 q_min). A slope of a few per cent
@@ -35,8 +35,8 @@ import scipy.optimize
 from ..ensemble.spec import EnsembleSpec
 from ..params import ParameterError, Params
 from ..physics import TWO_PI
-from .model import PARAMETERS, Correction, expected_psd, load_times_radius, setting_for
-from .spectrum import from_result
+from .forward_model import PARAMETERS, Correction, expected_psd, load_times_radius, setting_for
+from .observed import from_result
 
 #: Master seed of the correction's simulations (the same at every iteration: common random
 #: numbers, so that the iterates differ by the change of the estimate, not by noise).
@@ -84,7 +84,7 @@ def knots(band_q, octaves: float = OCTAVES) -> tuple:
 
 
 def hat_basis(q, knot_positions) -> np.ndarray:
-    """(n, k): the hat functions of :class:`~mdroll.inverse.model.Correction` at ``q`` (rad/m),
+    """(n, k): the hat functions of :class:`~mdroll.inverse.forward_model.Correction` at ``q`` (rad/m),
     so that ``log r(q) = hat_basis(q) @ log_ratio``."""
     x = np.log(np.asarray(q, dtype=np.float64))
     eye = np.eye(len(knot_positions))
@@ -140,7 +140,7 @@ def measured_correction(ensemble, spectrum, estimates: dict, band) -> Correction
     """r(q) over ``band`` (rad/s) from the ``ensemble`` of :func:`correction_spec`, against the
     closed-form model at the same parameters (``estimates``, with the simulation's q_min on the
     line's grid and its q_max) evaluated in the simulation's own setting (its dt, L and window;
-    the estimate's leakage, which the simulated series has too; no noise floor): a :class:`~mdroll.inverse.model.Correction` with the
+    the estimate's leakage, which the simulated series has too; no noise floor): a :class:`~mdroll.inverse.forward_model.Correction` with the
     covariance of its log values (:func:`estimate_ratio`, kappa = the ensemble's passes)."""
     simulated = from_result(ensemble, spectrum.quantity, spectrum.window)
     v0 = estimates["v0"]
@@ -234,7 +234,7 @@ def _fitted(name: str, value: float) -> float:
 
 def _at_bound(result) -> str | None:
     """The first free parameter whose estimate lies at a bound of
-    :data:`~mdroll.inverse.model.PARAMETERS` (a fit that wandered off), or None."""
+    :data:`~mdroll.inverse.forward_model.PARAMETERS` (a fit that wandered off), or None."""
     for name in result.free:
         _, _, low, high = PARAMETERS[name]
         if not low * (1 + 1e-6) < result.estimates[name] < high * (1 - 1e-6):

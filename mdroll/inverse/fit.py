@@ -9,7 +9,7 @@ log-likelihood used, up to terms free of the parameters, is
     -log L(theta) = kappa * sum_j [ log S_j(theta) + P_j / S_j(theta) ]          (Whittle)
 
 over the bins j in the band; the estimate does not depend on kappa. Positive parameters are
-fitted as their logarithms (H as is), bounded (:data:`mdroll.inverse.model.PARAMETERS`), by
+fitted as their logarithms (H as is), bounded (:data:`mdroll.inverse.forward_model.PARAMETERS`), by
 scipy.optimize L-BFGS-B from data-driven starting values (a power law for H, the modulation
 frequency of the flattened spectrum for a, a scan for q_min, the peak for the resonance).
 
@@ -53,9 +53,9 @@ from ..ensemble.spec import run_specs
 from ..files import jsonable
 from ..params import ParameterError
 from ..physics import TWO_PI, edge_displacement
-from .model import (NUISANCE_DEFAULTS, PARAMETERS, Correction, check_free, contact_radius_from_load, default_free,
+from .forward_model import (NUISANCE_DEFAULTS, PARAMETERS, Correction, check_free, contact_radius_from_load, default_free,
                     derived, expected_psd, lambda_A, resolve_known, setting_for)
-from .spectrum import Spectrum
+from .observed import Spectrum
 
 Z95 = scipy.stats.norm.ppf(0.975)
 CHI2_95 = scipy.stats.chi2.ppf(0.95, 1)
@@ -96,7 +96,7 @@ _HUGE = 1e30
 
 @dataclass
 class FitResult:
-    """The outcome of :func:`fit`. Values in SI units (see :data:`~mdroll.inverse.model.PARAMETERS`).
+    """The outcome of :func:`fit`. Values in SI units (see :data:`~mdroll.inverse.forward_model.PARAMETERS`).
 
     ``estimates``: every model parameter (free ones estimated, the rest as fixed); ``ci95``,
     ``stderr``: the free ones' calibrated 95 % intervals and standard errors; ``ci95_fisher``: the
@@ -320,14 +320,14 @@ def fit(spectrum: Spectrum, known: dict | None = None, free=None, band=None, pas
         bin: int = 1, start: dict | None = None, profile: bool = True, profile_points: int = 9,
         correction=None, correction_passes: int | None = None, device: str = "auto", runner=None,
         fill_check: str = "auto", discrepancy: float | None = None) -> FitResult:
-    """Fit the forward model (:mod:`mdroll.inverse.model`) to ``spectrum`` by the Whittle likelihood.
+    """Fit the forward model (:mod:`mdroll.inverse.forward_model`) to ``spectrum`` by the Whittle likelihood.
 
     Parameters
     ----------
-    spectrum : :class:`~mdroll.inverse.spectrum.Spectrum` (see :func:`~mdroll.inverse.read_spectrum`).
-    known : ``{name: value}`` in SI units: any of :data:`~mdroll.inverse.model.PARAMETERS` and
+    spectrum : :class:`~mdroll.inverse.observed.Spectrum` (see :func:`~mdroll.inverse.read_spectrum`).
+    known : ``{name: value}`` in SI units: any of :data:`~mdroll.inverse.forward_model.PARAMETERS` and
         ``v0`` (m/s), ``E`` (Pa) with ``nu``, ``F_N`` (N; a then follows from R and E*, eq 14-15).
-    free : names to fit (default :func:`~mdroll.inverse.model.default_free`).
+    free : names to fit (default :func:`~mdroll.inverse.forward_model.default_free`).
     band : (omega_lo, omega_hi) in rad/s (default: the whole spectrum).
     passes : K, the number of averaged passes (default the spectrum's, else 1, marked assumed).
     bin : average this many neighbouring bins first (nu = 2 K bin).
@@ -337,7 +337,7 @@ def fit(spectrum: Spectrum, known: dict | None = None, free=None, band=None, pas
         an mdroll one): the closed form times the ratio r(q) that simulations at the estimate
         measure (:mod:`mdroll.inverse.correction`), iterated, with r's uncertainty in the
         intervals; "none" (the default for a table): the closed form alone; or a
-        :class:`~mdroll.inverse.model.Correction` to hold fixed (e.g. ``result.correction_used``).
+        :class:`~mdroll.inverse.forward_model.Correction` to hold fixed (e.g. ``result.correction_used``).
     correction_passes : passes K_c of each correction ensemble (default
         :func:`mdroll.inverse.correction.default_passes`: 32, or more to roll 80 m). device,
         runner : where those ensembles run (:func:`mdroll.run_specs`).
@@ -651,7 +651,7 @@ def long_run_factor(z, blocks=BLOCK_SIZES, least_blocks: int = 16):
 
 def _polish_cutoff(problem: _Problem, theta):
     """q_min by a scan over +-3 bins in quarter bins, the other parameters held: the likelihood has
-    a kink at every bin (the fractional bin weight of :func:`~mdroll.inverse.model.band_weights`)."""
+    a kink at every bin (the fractional bin weight of :func:`~mdroll.inverse.forward_model.band_weights`)."""
     if "q_min" not in problem.free:
         return theta
     i = problem.free.index("q_min")
@@ -701,7 +701,7 @@ def _minimize(problem: _Problem, theta0):
 
 
 def _derived(problem: _Problem, theta, cov) -> dict:
-    """Derived quantities (:func:`mdroll.inverse.model.derived`, and lambda A on the line's grid
+    """Derived quantities (:func:`mdroll.inverse.forward_model.derived`, and lambda A on the line's grid
     when known), with delta-method 95 % intervals (in log scale)."""
     units = {"k_c": "N/m", "omega_0": "rad/s", "F_N_R": "N m", "F_N": "N", "level": "Pa^2 m^(2-2H)",
              "lambda_A": "m^(2-2H)"}
