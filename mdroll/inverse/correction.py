@@ -36,6 +36,7 @@ from ..ensemble.spec import EnsembleSpec
 from ..params import ParameterError, Params
 from ..physics import TWO_PI
 from .forward_model import PARAMETERS, Correction, expected_psd, load_times_radius, setting_for
+from .likelihood import long_run_factor
 from .observed import from_result
 
 #: Master seed of the correction's simulations (the same at every iteration: common random
@@ -94,9 +95,7 @@ def hat_basis(q, knot_positions) -> np.ndarray:
 def estimate_ratio(data, model, basis, kappa: float) -> tuple[np.ndarray, np.ndarray]:
     """The Whittle (Gamma, log-link) fit of ``data ~ model exp(basis @ c)``: c and its calibrated
     covariance ``phi tau (kappa B^T B)^-1`` (phi the Pearson dispersion, tau the long-run factor
-    of :func:`mdroll.inverse.fit.long_run_factor`). Convex in c: Newton's method from c = 0."""
-    from .fit import long_run_factor
-
+    of :func:`mdroll.inverse.likelihood.long_run_factor`). Convex in c: Newton's method from c = 0."""
     ratio = data / model
     start = np.zeros(basis.shape[1])
 
