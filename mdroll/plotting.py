@@ -11,9 +11,9 @@ def plot_psd(result, quantity: str = "accel", path=None, ax=None):
     """Log-log ensemble-mean PSD on omega (rad/s) with a +-1 standard-error band, annotated with
     omega_0 (section 4.2), q_min v0 (eq 21), the q^-(2H+3) slope (eq 23) and eq 40 (force; for the
     acceleration, eq 40 through the linearized wheel response). PSDs per rad/s: C(omega) = C(q)/v0."""
-    import matplotlib
+    import matplotlib  # here, not at the top: a run that draws nothing does not load it
 
-    matplotlib.use("Agg")
+    matplotlib.use("Agg")  # before pyplot: no display needed
     import matplotlib.pyplot as plt
 
     if quantity not in ("accel", "force"):
