@@ -74,7 +74,7 @@ def column_extremes(x: np.ndarray, series, columns: int = PLOT_COLUMNS) -> np.nd
     ``columns`` equal steps of log x (x positive, increasing; NaN points ignored): lines and
     bands through these points draw as through all of them wherever a step is at most a pixel
     wide (M4 aggregation), with ~10^4 points instead of the ~5e5 bins of a thesis-scale
-    spectrum, whose two plots took ~1.3 s to draw on one CPU core."""
+    spectrum (the drawing time it saves: docs/performance.md, the CPU's full run)."""
     log_x = np.log(x)
     column = np.minimum(((log_x - log_x[0]) / max(log_x[-1] - log_x[0], 1e-300) * columns).astype(np.int64),
                         columns - 1)

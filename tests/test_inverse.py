@@ -1,4 +1,4 @@
-"""The inverse problem (issue 19): readers and their unit conversions, bad input, the Whittle fit
+"""The inverse problem: readers and their unit conversions, bad input, the Whittle fit
 against chi-square periodograms of a known model, a CPU round trip, and `mdroll invert`."""
 
 import json

@@ -46,14 +46,15 @@ SEED = 2_000_003
 #: bins, so its statistical error stays below the data's at K_c much smaller than K.
 PASSES = 32
 #: ... and at least this rolled distance K_c L (m): the octave at the band's bottom holds few bins
-#: on a short line (24 at L = 0.5 m), and its noise reaches E* through the response (L = 0.5 m,
-#: K = 100: median |error| of E* 2.2 % with K_c = 32, 1.1 % with 160; h0 2.0 and 1.2 %).
+#: on a short line (24 at L = 0.5 m), and its noise reaches h0 and E* through the response
+#: (docs/inverse.md, "The simulated correction": their errors with 32 and 160 passes at 0.5 m).
 DISTANCE = 80.0
 #: Knot spacing of log r, in octaves of q.
 OCTAVES = 1.0
 #: At most this many iterations (simulate at the estimate, refit): the map from one estimate to
-#: the next contracts by about 0.35 where the non-linearity is strongest (h0 = 2 um: H -0.056,
-#: -0.020, -0.007, -0.003, -0.002), by 0.1 at the defaults.
+#: the next contracts by about 0.35 where the non-linearity is strongest and by 0.1 at the
+#: defaults (docs/inverse.md, "The simulated correction"), so a step of the sixth is below 1 % of
+#: the first.
 ITERATIONS = 6
 #: The correction is not simulated where the estimate's contact radius exceeds this fraction of R
 #: (Hertz's small-contact assumption, d0 = a^2 / R << R, fails; the one-pass fits that wander there
