@@ -1,4 +1,4 @@
-"""Reliability (issue 6): one clear error for every bad input, never silently wrong,
+"""Reliability: one clear error for every bad input, never silently wrong,
 deterministic ensembles, resumable runs after kill -9, bounded memory."""
 
 import inspect
@@ -18,7 +18,7 @@ import warp as wp
 from mdroll import EnsembleResult, Params, __version__ as mdroll_version, contact_force, rough_lines, run_ensemble
 from mdroll.cli import LOCK, RUN_OUTPUTS, main as cli_main
 from mdroll.ensemble import batching, checkpoint as checkpoint_module, pipeline, validity
-from mdroll.ensemble.force import reach
+from mdroll.forces.indenter import reach
 from mdroll.ensemble.checkpoint import CHECKPOINT, read_checkpoint
 from mdroll.ensemble.pipeline import NonFiniteError
 
@@ -141,7 +141,7 @@ def test_contact_loss_is_counted_in_both_modes():
 def test_tree_stack_bound_is_checked_before_launch(monkeypatch):
     """The launch checks the length of the stack the kernels are compiled with (one source)."""
     import mdroll.kernels.common as common
-    from mdroll.ensemble.prepare import tree_levels
+    from mdroll.forces.prepared import tree_levels
 
     lines = rough_lines(P, 0, 1)
     levels = len(tree_levels(P.n_points, 1))
@@ -193,8 +193,8 @@ def test_cpu_and_cuda_give_the_same_spectra(cuda_devices):
 
 
 def test_split_across_processes_and_merged(quick_plots, tmp_path, capsys):
-    """Unequal parts started together without --out (issue 16: they shared the per-second
-    directory, only the last survived, and merge refused the unequal counts): each keeps its own
+    """Unequal parts started together without --out (they must not share a per-second
+    directory, where only the last would survive, and merge must take unequal counts): each keeps its own
     locked directory and the merge is the whole ensemble."""
     common = ["--set", "L=0.05", "--device", "cpu", "--no-progress", "--seed", "4"]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
@@ -268,8 +268,8 @@ def test_thesis_scale_batches_fit_a_24_gib_host():
     assert batch * batching.BYTES_PER_POINT * thesis.n_points <= 12 * 2**30
 
 
-# ============================================================================= issue 16
-# Each case below failed before its fix (a traceback, a hang, a silently wrong or lost result).
+# ============================================================================= failure modes
+# Each case below is a way to fail that the CLI must refuse: a traceback, a hang, a silently wrong or lost result.
 
 @pytest.fixture
 def quick_plots(monkeypatch):
