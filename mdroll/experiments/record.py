@@ -13,6 +13,7 @@ import json
 import subprocess
 from pathlib import Path
 
+from ..devices import resolve_device
 from ..files import atomic_write, jsonable
 from ..provenance import environment
 
@@ -47,9 +48,10 @@ def _plain(value):
 
 def provenance(device: str, size: str | None = None, seed: int | None = None, parameters=None,
                devices=None) -> dict:
-    """The provenance keys of a record (module docstring) for a run on ``device``; ``devices``:
-    several devices, each with its own environment (``environment`` then maps device -> dict)."""
-    env = {d: environment(d) for d in devices} if devices is not None else environment(device)
+    """The provenance keys of a record (module docstring) for a run on ``device`` ("auto" is
+    resolved); ``devices``: several devices, each with its own environment (``environment`` then
+    maps device -> dict)."""
+    env = {d: environment(d) for d in devices} if devices is not None else environment(resolve_device(device))
     return {"size": size, "seed": seed, "parameters": jsonable(_plain(parameters)), "environment": env,
             "git_commit": git_commit()}
 
