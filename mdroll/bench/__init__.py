@@ -1,11 +1,11 @@
 """``mdroll bench``: the scaling study of the force algorithms (:mod:`.study`) and its table and
 plot (:mod:`.report`)."""
 
-from .report import expected_exponent, format_table, plot_study, refinement_note
+from .report import expected_exponent, format_table, plot_study, refinement_note, study_figure
 from .study import (
     HOLD_S,
-    STUDIES,
-    StudySize,
+    SIZES,
+    ScalingSize,
     compile_time,
     device_timed,
     fit_exponent,
@@ -19,8 +19,8 @@ from .study import (
 
 __all__ = [
     "HOLD_S",
-    "STUDIES",
-    "StudySize",
+    "SIZES",
+    "ScalingSize",
     "compile_time",
     "device_timed",
     "expected_exponent",
@@ -32,6 +32,7 @@ __all__ = [
     "point_limit",
     "refinement_note",
     "run_study",
+    "study_figure",
     "thesis_scale",
     "timed",
 ]
