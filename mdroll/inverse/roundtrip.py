@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..ensemble.spec import EnsembleSpec, run_specs
+from ..experiments import Figure, Ladder, markdown_table, provenance, write_figure
 from ..params import ParameterError, Params
 from ..physics import TWO_PI, effective_modulus
 from .correction import iterate, simulation_params
@@ -26,8 +27,8 @@ from .fit import fit, refit
 from .model import load_times_radius
 from .spectrum import from_result, read_table, write_table
 
-#: Parameters compared in a round trip, and the targets of issue 19 at the thesis's scale
-#: (K = 300, L = 5 m): absolute for H, relative for the others.
+#: Parameters compared in a round trip, and their targets at the thesis's scale (K = 300,
+#: L = 5 m): absolute for H, relative for the others.
 TARGETS = {"H": 0.02, "a": 0.005, "q_min": 0.01, "h0": 0.03, "E_star": 0.02}
 KNOWN = ("m", "R")
 #: Seed of the first realistic case (one per repeat: 7, 8, ...).
@@ -35,8 +36,8 @@ REALISTIC_SEED = 7
 
 
 @dataclass(frozen=True)
-class StudySize:
-    """A study: the true parameter sets, passes K, lengths L (m), repeats (seeds) per cell and per
+class RoundTripSize:
+    """The study's parameters on one rung of the ladder (:data:`SIZES`): the true parameter sets, passes K, lengths L (m), repeats (seeds) per cell and per
     realistic case, the realistic cases' speeds (m/s), and the (K, L) of those."""
 
     truths: tuple
@@ -65,12 +66,12 @@ def truth_grid(full: bool) -> tuple:
     return tuple([base] + variations)
 
 
-SIZES = {
-    "quick": StudySize(truths=truth_grid(False), passes=(1, 10, 100), lengths=(0.5, 1.0), repeats=1,
-                       realistic_speeds=(10.0, 20.0, 40.0), realistic_passes=100, realistic_length=1.0),
-    "full": StudySize(truths=truth_grid(True), passes=(1, 10, 100, 300), lengths=(0.5, 1.0, 5.0), repeats=3,
-                      realistic_speeds=(10.0, 20.0, 40.0), realistic_passes=300, realistic_length=5.0),
-}
+SIZES = Ladder(
+    quick=RoundTripSize(truths=truth_grid(False), passes=(1, 10, 100), lengths=(0.5, 1.0), repeats=1,
+                        realistic_speeds=(10.0, 20.0, 40.0), realistic_passes=100, realistic_length=1.0),
+    full=RoundTripSize(truths=truth_grid(True), passes=(1, 10, 100, 300), lengths=(0.5, 1.0, 5.0), repeats=3,
+                       realistic_speeds=(10.0, 20.0, 40.0), realistic_passes=300, realistic_length=5.0),
+)
 
 
 def bootstrap(spectrum, result, replicates: int, device: str = "auto", seed: int = 1_000_003, bin: int = 1,
@@ -223,8 +224,9 @@ def run_study(size: str = "quick", device: str = "auto", folder=None, progress=l
     replaces its seeds per truth), fitted with the ``correction`` ("simulated" or "none"; its
     ensembles of ``correction_passes`` passes, default
     :func:`mdroll.inverse.correction.default_passes`) and the
-    realistic cases; a JSON-ready record with the rows, a summary per (K, L) (median and 90th
-    percentile of |error|, coverage of the 95 % intervals) and the total time.
+    realistic cases; a JSON-ready record with the provenance (:func:`mdroll.experiments.provenance`),
+    the rows, a summary per (K, L) (median and 90th percentile of |error|, coverage of the 95 %
+    intervals) and the total time.
 
     Per (K, L) cell the ensembles run one after the other on ``device`` (:func:`mdroll.run_specs`),
     then their fits in ``workers`` processes (the fit is NumPy on the host). The realistic cases
@@ -233,11 +235,9 @@ def run_study(size: str = "quick", device: str = "auto", folder=None, progress=l
     from concurrent.futures import ProcessPoolExecutor
     from pathlib import Path
 
-    if size not in SIZES:
-        raise ParameterError(f"size = {size!r} is not allowed: use one of {', '.join(map(repr, SIZES))}")
+    plan = SIZES.rung(size)
     if correction not in ("simulated", "none"):
         raise ParameterError(f"correction = {correction!r} is not allowed: use 'simulated' or 'none'")
-    plan = SIZES[size]
     if repeats is not None:
         if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
             raise ParameterError(f"repeats = {repeats!r} is not allowed: it must be a positive integer")
@@ -289,7 +289,8 @@ def run_study(size: str = "quick", device: str = "auto", folder=None, progress=l
                 realistic.append(row)
                 progress(f"realistic v0={v0} seed {seed}: "
                          + " ".join(f"{n} {_fmt_error(n, e)}" for n, e in row["error"].items()))
-    return {"size": size, "rows": rows, "summary": summarize(rows), "realistic": realistic, "targets": TARGETS,
+    return {**provenance(device, size, None, plan), "rows": rows, "summary": summarize(rows), "realistic": realistic,
+            "targets": TARGETS,
             "known": list(KNOWN) + ["v0"], "workers": workers, "correction": correction,
             "seconds": time.perf_counter() - started}
 
@@ -319,8 +320,7 @@ def summarize(rows) -> list:
 def format_table(record: dict) -> str:
     """The summary as a Markdown table: median |error| (coverage of the 95 % intervals)."""
     names = list(TARGETS)
-    head = "| K | L (m) | trips | " + " | ".join(f"{n} ({'abs' if n == 'H' else '%'})" for n in names) + " |"
-    lines = [head, "|" + "---|" * (3 + len(names))]
+    rows = []
     for e in record["summary"]:
         cells = []
         for n in names:
@@ -330,12 +330,12 @@ def format_table(record: dict) -> str:
             m = e[n]["median_abs_error"]
             value = f"{m:.4f}" if n == "H" else f"{100 * m:.2f}"
             cells.append(f"{value} ({100 * e[n]['coverage']:.0f}%)")
-        lines.append(f"| {e['passes']} | {e['L']:g} | {e['round_trips']} | " + " | ".join(cells) + " |")
+        rows.append((e["passes"], f"{e['L']:g}", e["round_trips"], *cells))
     for row in record.get("realistic", []):
         cells = [_realistic_cell(row, n) if n in row["error"] else "-" for n in names]
-        lines.append(f"| {row['passes']} | {row['L']:g} | realistic v0={row['v0']:g} seed {row['seed']} | "
-                     + " | ".join(cells) + " |")
-    return "\n".join(lines)
+        rows.append((row["passes"], f"{row['L']:g}", f"realistic v0={row['v0']:g} seed {row['seed']}", *cells))
+    head = ("K", "L (m)", "trips", *(f"{n} ({'abs' if n == 'H' else '%'})" for n in names))
+    return "\n".join(markdown_table(head, rows))
 
 
 def _realistic_cell(row: dict, name: str) -> str:
@@ -385,9 +385,7 @@ def report(record: dict) -> str:
         return out[0]
     corrected = [r for r in rows if "error_closed_form" in r]
     if corrected:
-        out += ["Closed form (the first iterate) against the corrected fit: median |error|, and the median signed "
-                "error of H:", "", "| K | L (m) | H closed | H corrected | H signed closed | H signed corrected | "
-                "h0 closed (%) | h0 corrected (%) | E_star closed (%) | E_star corrected (%) |", "|" + "---|" * 10]
+        table = []
         for key in sorted({(r["passes"], r["L"]) for r in corrected}):
             cell = [r for r in corrected if (r["passes"], r["L"]) == key]
 
@@ -395,15 +393,17 @@ def report(record: dict) -> str:
                 values = [r[field][name] for r in cell if name in r[field]]
                 return float(np.median(values if signed else np.abs(values)))
 
-            out.append(f"| {key[0]} | {key[1]:g} | {median('H', 'error_closed_form'):.4f} | {median('H', 'error'):.4f} | "
-                       f"{median('H', 'error_closed_form', True):+.4f} | {median('H', 'error', True):+.4f} | "
-                       + " | ".join(f"{100 * median(n, 'error_closed_form'):.2f} | {100 * median(n, 'error'):.2f}"
-                                    for n in ("h0", "E_star")) + " |")
-        out.append("")
+            table.append((key[0], f"{key[1]:g}", f"{median('H', 'error_closed_form'):.4f}", f"{median('H', 'error'):.4f}",
+                          f"{median('H', 'error_closed_form', True):+.4f}", f"{median('H', 'error', True):+.4f}",
+                          *(f"{100 * median(n, field):.2f}" for n in ("h0", "E_star")
+                            for field in ("error_closed_form", "error"))))
+        out += ["Closed form (the first iterate) against the corrected fit: median |error|, and the median signed "
+                "error of H:", "", *markdown_table(("K", "L (m)", "H closed", "H corrected", "H signed closed",
+                                                    "H signed corrected", "h0 closed (%)", "h0 corrected (%)",
+                                                    "E_star closed (%)", "E_star corrected (%)"), table), ""]
     largest = max((r["passes"], r["L"]) for r in rows)
     cell = [r for r in rows if (r["passes"], r["L"]) == largest]
-    out += [f"Per true parameter set at K = {largest[0]}, L = {largest[1]:g} m: median signed error (coverage):", "",
-            "| truth | trips | " + " | ".join(TARGETS) + " |", "|" + "---|" * (2 + len(TARGETS))]
+    table = []
     for change in sorted({json_key(r["change"]) for r in cell}):
         group = [r for r in cell if json_key(r["change"]) == change]
         cells = []
@@ -411,7 +411,9 @@ def report(record: dict) -> str:
             errors = [r["error"][n] for r in group if n in r["error"]]
             cover = np.mean([r["covered"][n] for r in group if n in r["covered"]])
             cells.append(f"{_fmt_error(n, float(np.median(errors)))} ({100 * cover:.0f}%)")
-        out.append(f"| {change} | {len(group)} | " + " | ".join(cells) + " |")
+        table.append((change, len(group), *cells))
+    out += [f"Per true parameter set at K = {largest[0]}, L = {largest[1]:g} m: median signed error (coverage):", "",
+            *markdown_table(("truth", "trips", *TARGETS), table)]
     failed = [r for r in rows if not r["success"]]
     messages = sorted({r.get("message", "") for r in failed})
     skipped = [r for r in rows if r.get("correction_skipped")]
@@ -427,26 +429,27 @@ def json_key(change: dict) -> str:
     return ", ".join(f"{k}={v:.6g}" for k, v in sorted(change.items())) or "defaults"
 
 
-def plot_study(record: dict, path) -> None:
-    """|error| against K for each L and parameter (median over the truths), with the targets, as
-    PNG to ``path`` (a path or a binary file)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+def study_figure(record: dict) -> Figure:
+    """|error| against K for each L and parameter (median over the truths), with the targets."""
     names = list(TARGETS)
-    fig, axes = plt.subplots(1, len(names), figsize=(3.2 * len(names), 3.2))
-    for ax, name in zip(axes, names):
-        for length in sorted({e["L"] for e in record["summary"]}):
-            cells = [e for e in record["summary"] if e["L"] == length and name in e]
-            scale = 1.0 if name == "H" else 100.0
-            ax.loglog([e["passes"] for e in cells], [max(scale * e[name]["median_abs_error"], 1e-6) for e in cells],
-                      "o-", label=f"L = {length:g} m")
-        ax.axhline(TARGETS[name] * (1.0 if name == "H" else 100.0), color="0.5", ls="--", lw=0.8)
-        ax.set_title(f"{name}: median |error|" + ("" if name == "H" else " (%)"), fontsize=9)
-        ax.set_xlabel("passes K")
-    axes[0].legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120, format="png")
-    plt.close(fig)
+
+    def draw(fig):
+        axes = fig.subplots(1, len(names))
+        for ax, name in zip(axes, names):
+            for length in sorted({e["L"] for e in record["summary"]}):
+                cells = [e for e in record["summary"] if e["L"] == length and name in e]
+                scale = 1.0 if name == "H" else 100.0
+                ax.loglog([e["passes"] for e in cells],
+                          [max(scale * e[name]["median_abs_error"], 1e-6) for e in cells], "o-", label=f"L = {length:g} m")
+            ax.axhline(TARGETS[name] * (1.0 if name == "H" else 100.0), color="0.5", ls="--", lw=0.8)
+            ax.set_title(f"{name}: median |error|" + ("" if name == "H" else " (%)"), fontsize=9)
+            ax.set_xlabel("passes K")
+        axes[0].legend(fontsize=8)
+
+    return Figure("roundtrip", "Median |error| of the round trips against the passes K, per L, with the targets", draw,
+                  size=(3.2 * len(names), 3.2), dpi=120)
+
+
+def plot_study(record: dict, path) -> None:
+    """Write :func:`study_figure` as PNG to ``path`` (a path or a binary file)."""
+    write_figure(study_figure(record), path)
