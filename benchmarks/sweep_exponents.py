@@ -3,7 +3,7 @@ refinement (fixed L) and under rolling distance (fixed dx), with the exponents o
 ``time ~ n^p`` fitted as ``mdroll bench --full`` does, at the sizes of its sections for that
 device (``mdroll.bench.study.SIZES``; periodic lines, as there), for the sweep alone: about a
 minute. On CUDA each section is timed twice: on the device's clock, as the study does
-(``mdroll.bench.study.device_timed``), and on the wall clock around the launch.
+(``mdroll.bench.clocks.device_timed``), and on the wall clock around the launch.
 
     python benchmarks/sweep_exponents.py --device cpu --out cpu_sweep_exponents.json
     python benchmarks/sweep_exponents.py --device cuda --out cuda_sweep_exponents.json

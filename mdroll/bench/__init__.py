@@ -1,20 +1,18 @@
-"""``mdroll bench``: the scaling study of the force algorithms (:mod:`.study`) and its table and
-plot (:mod:`.report`)."""
+"""``mdroll bench``: the scaling study of the force algorithms (:mod:`.study`), its clocks
+(:mod:`.clocks`) and its table and plot (:mod:`.report`)."""
 
+from .clocks import HOLD_S, device_timed, timed
 from .report import expected_exponent, format_table, plot_study, refinement_note, study_figure
 from .study import (
-    HOLD_S,
     SIZES,
     ScalingSize,
     compile_time,
-    device_timed,
     fit_exponent,
     force_time,
     memory_per_realization,
     point_limit,
     run_study,
     thesis_scale,
-    timed,
 )
 
 __all__ = [
