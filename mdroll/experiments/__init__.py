@@ -9,6 +9,14 @@ claims on top of it.
   parameters, seed, size) and its atomic writer.
 - :mod:`.table`: the one table writer (aligned text and Markdown).
 - :mod:`.figures`: :class:`Figure` and the one PNG writer.
+
+Adding an experiment: write its physics as a function of a rung's parameters (and the seed and
+device) returning a JSON-ready dict or the package's own result records; state its rungs in a
+``Ladder(test=..., quick=..., full=...)``; register it in its package's :class:`Registry`; start
+its record with ``provenance(device, size, seed, rung)``; write the record with
+:func:`write_json`, its tables with :func:`text_table` or :func:`markdown_table` and its
+figures as :class:`Figure` objects with :func:`write_figure`. The thesis studies
+(:mod:`mdroll.studies`) are the fullest example.
 """
 
 from .figures import Figure, render_png, write_figure, write_figures
