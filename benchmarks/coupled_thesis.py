@@ -14,7 +14,7 @@ import numpy as np
 
 from mdroll import Params, run_ensemble
 from mdroll.devices import resolve_device, synchronize
-from mdroll.ensemble.algorithms import REGISTRY
+from mdroll.forces.registry import REGISTRY
 from mdroll.provenance import environment
 
 

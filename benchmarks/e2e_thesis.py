@@ -14,7 +14,7 @@ import json
 from mdroll import Params, run_ensemble
 from mdroll.bench import timed
 from mdroll.devices import resolve_device
-from mdroll.ensemble.algorithms import ALGORITHMS
+from mdroll.forces.registry import ALGORITHMS
 from mdroll.provenance import environment
 
 

@@ -1,6 +1,6 @@
 """Why open runs take a 5-smooth number of steps: cuFFT's real FFT of 300 rows at the open
 boundary's natural length (1,046,492 = 4 x 397 x 659 at thesis scale) against the largest 7-smooth
-and 5-smooth lengths below it (``mdroll.ensemble.fft.fast_length``) and 2^20, with a
+and 5-smooth lengths below it (``mdroll.fft.fast_length``) and 2^20, with a
 device-to-device copy of the same bytes for the memory ceiling. CUDA with CuPy only.
 
     python benchmarks/fft_lengths.py --out fft_lengths.json
@@ -16,7 +16,7 @@ import cupy as cp
 import numpy as np
 from cupyx.profiler import benchmark
 
-from mdroll.ensemble.fft import fast_length
+from mdroll.fft import fast_length
 
 ROWS = 300
 NATURAL = 1_046_492  # open steps of 300 x 2^20 at the defaults before runs were shortened

@@ -14,13 +14,13 @@ import time
 
 from mdroll import Params
 from mdroll.devices import resolve_device, synchronize, to_warp
-from mdroll.ensemble.fft import rfft_rows
-from mdroll.ensemble.force import launch_force
-from mdroll.ensemble.prepare import prepare_lines
+from mdroll.fft import rfft_rows
+from mdroll.forces.force import launch_force
+from mdroll.forces.prepare import prepare_lines
 from mdroll.ensemble.lines import random_spectra, rough_lines
 from mdroll.ensemble.checkpoint import RunTotals
 from mdroll.ensemble.pipeline import H_BOUND_SIGMAS
-from mdroll.ensemble.spectra import psd_moments_of_batch, series_sums, to_host
+from mdroll.ensemble.psd import psd_moments_of_batch, series_sums, to_host
 from mdroll.provenance import environment
 
 

@@ -8,11 +8,11 @@ import pytest
 
 from mdroll import ALGORITHMS, Params, rough_lines, run_ensemble
 from mdroll.devices import synchronize, to_warp
-from mdroll.ensemble.force import launch_force
-from mdroll.ensemble.prepare import prepare_lines
-from mdroll.ensemble.algorithms import REGISTRY
+from mdroll.forces.force import launch_force
+from mdroll.forces.prepare import prepare_lines
+from mdroll.forces.registry import REGISTRY
 from mdroll.ensemble.coupled import coupled_series
-from mdroll.ensemble.spectra import psd_moments_of_batch, series_sums
+from mdroll.ensemble.psd import psd_moments_of_batch, series_sums
 
 #: realizations per benchmark and the largest CPU problem (points x realizations) per kind
 REALIZATIONS = {"cpu": 4, "cuda": 64}

@@ -4,7 +4,7 @@ the refinement exponent (``mdroll bench --full``'s sweep) per band_limit.
     python benchmarks/tree_tuning.py --device cuda:0 --out tree_tuning.json
 
 Each point is ``mdroll.bench.force_time``: median of repeats on fresh lines, device synchronized.
-The defaults in ``mdroll/ensemble/force.py`` (DEFAULT_LEAF_SIZE, DEFAULT_BAND_LIMIT) come from
+The defaults in ``mdroll/forces/prepared.py`` (DEFAULT_LEAF_SIZE, DEFAULT_BAND_LIMIT) come from
 this study; docs/performance.md records its numbers.
 """
 

@@ -1,14 +1,15 @@
 """mdroll: the Method of Dimensionality Reduction for a wheel rolling on a rough rail.
 
-Ensembles of random rough lines (physics.md section 3), the contact force by three algorithms
-(direct sum, bounding tree, edge-incremental; section 4) as Warp kernels on CPU and CUDA, the
-wheel's dynamics (section 5) and ensemble-averaged spectra (section 6). All units SI.
+Ensembles of random rough lines (physics.md section 3), the contact force by the registered
+algorithms (:data:`ALGORITHMS`: direct sum, bounding tree, edge-incremental, sweep; section 4)
+as Warp kernels on CPU and CUDA, the wheel's dynamics (section 5) and ensemble-averaged spectra
+(section 6). All units SI.
 """
 
 from .devices import DeviceError, available_devices
-from .ensemble.algorithms import ALGORITHMS
-from .ensemble.force import contact_force
-from .ensemble.prepare import BOUNDARIES, step_range
+from .forces.force import contact_force
+from .forces.registry import ALGORITHMS
+from .forces.steps import BOUNDARIES, step_range
 from .ensemble.lines import rough_lines
 from .ensemble.pipeline import EnsembleResult, run_ensemble
 from ._version import __version__

@@ -19,7 +19,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from .ensemble.algorithms import ALGORITHMS, DEFAULT_ALGORITHMS, REGISTRY
+from .forces.registry import ALGORITHMS, DEFAULT_ALGORITHMS, REGISTRY
 from .params import TEXT_FIELDS, Params
 
 PARAM_NAMES = tuple(f.name for f in dataclasses.fields(Params))

@@ -8,8 +8,11 @@ CuPy is installed.
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import functools
 import os
+import sys
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -41,26 +44,25 @@ def warp():
 
 
 @functools.cache
-def cuda_driver_present() -> bool:
-    """Whether the NVIDIA CUDA driver library loads (as Warp looks for it)."""
-    import ctypes
-    import sys
-
+def _cuda_driver():
+    """The NVIDIA CUDA driver library (ctypes), loaded as Warp looks for it, or None."""
     names = ("nvcuda.dll",) if sys.platform == "win32" else ("libcuda.so", "libcuda.so.1")
     for name in names:
         try:
-            ctypes.CDLL(name)
-            return True
+            return ctypes.CDLL(name)
         except OSError:
             pass
-    return False
+    return None
+
+
+def cuda_driver_present() -> bool:
+    """Whether the NVIDIA CUDA driver library loads (as Warp looks for it)."""
+    return _cuda_driver() is not None
 
 
 @contextlib.contextmanager
 def _native_stderr_silenced():
     """Send what native code writes to file descriptor 2 to /dev/null for the duration."""
-    import sys
-
     sys.stderr.flush()
     saved = os.dup(2)
     try:
@@ -131,6 +133,69 @@ def _keep_pool(device: str) -> None:
     wp = warp()
     if wp.is_mempool_supported(device):
         wp.set_mempool_release_threshold(device, 0.5)
+
+
+@dataclass(frozen=True)
+class DeviceLimits:
+    """What a CUDA device's multiprocessors hold, for choosing a kernel's launch layout.
+
+    Attributes
+    ----------
+    multiprocessors : int
+        Streaming multiprocessors on the device.
+    shared_per_multiprocessor : int
+        Shared memory a multiprocessor holds (bytes), all its resident blocks together.
+    shared_per_block : int
+        Shared memory one block may take (bytes, the opt-in maximum).
+    registers_per_multiprocessor : int
+        32-bit registers a multiprocessor holds.
+    lanes_per_multiprocessor : int
+        Threads a multiprocessor keeps resident at once.
+    """
+
+    multiprocessors: int
+    shared_per_multiprocessor: int
+    shared_per_block: int
+    registers_per_multiprocessor: int
+    lanes_per_multiprocessor: int
+
+
+#: The CUDA driver's device attributes (``CUdevice_attribute``) that :func:`device_limits` reads.
+_MAX_THREADS_PER_MULTIPROCESSOR = 39
+_MAX_SHARED_MEMORY_PER_MULTIPROCESSOR = 81
+_MAX_REGISTERS_PER_MULTIPROCESSOR = 82
+
+
+def _driver_attribute(driver, ordinal: int, attribute: int) -> int:
+    """One ``cuDeviceGetAttribute`` of CUDA device ``ordinal``; a DeviceError if the driver refuses."""
+    handle = ctypes.c_int()
+    value = ctypes.c_int()
+    status = driver.cuDeviceGet(ctypes.byref(handle), ctypes.c_int(ordinal))
+    if status == 0:
+        status = driver.cuDeviceGetAttribute(ctypes.byref(value), ctypes.c_int(attribute), handle)
+    if status != 0:
+        raise DeviceError(f"the CUDA driver gave error {status} for attribute {attribute} of device cuda:{ordinal}")
+    return value.value
+
+
+@functools.cache
+def device_limits(device: str) -> DeviceLimits | None:
+    """The :class:`DeviceLimits` of CUDA device ``device`` (None for the CPU), queried once per
+    device: the multiprocessor count and a block's opt-in shared memory from Warp, the rest from
+    the CUDA driver (``cuDeviceGetAttribute``, through ctypes)."""
+    if not is_cuda(device):
+        return None
+    info = warp().get_device(device)
+    driver = _cuda_driver()
+    if driver is None or driver.cuInit(0) != 0:
+        raise DeviceError(f"device {device!r}: the CUDA driver does not load or initialise")
+    return DeviceLimits(
+        multiprocessors=info.sm_count,
+        shared_per_multiprocessor=_driver_attribute(driver, info.ordinal, _MAX_SHARED_MEMORY_PER_MULTIPROCESSOR),
+        shared_per_block=info.max_shared_memory_per_block,
+        registers_per_multiprocessor=_driver_attribute(driver, info.ordinal, _MAX_REGISTERS_PER_MULTIPROCESSOR),
+        lanes_per_multiprocessor=_driver_attribute(driver, info.ordinal, _MAX_THREADS_PER_MULTIPROCESSOR),
+    )
 
 
 def is_cuda(device: str) -> bool:

@@ -8,7 +8,7 @@ import pytest
 
 from mdroll import ALGORITHMS, Params, bench
 from mdroll.cli import main
-from mdroll.ensemble.algorithms import REGISTRY
+from mdroll.forces.registry import REGISTRY
 
 
 def test_fit_exponent_recovers_a_power_law():
@@ -28,7 +28,7 @@ def test_device_timed_leaves_the_enqueue_outside(device):
 
     import warp as wp
 
-    from mdroll.kernels.clock import hold_stream
+    from mdroll.kernels.intrinsics import hold_stream
 
     cuda = device.startswith("cuda")
 

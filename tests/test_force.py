@@ -6,7 +6,7 @@ from reference import direct_force, psd, to_numpy
 
 from mdroll import ParameterError, Params, contact_force, rough_lines, step_range
 from mdroll.devices import to_warp
-from mdroll.ensemble.algorithms import REGISTRY
+from mdroll.forces.registry import REGISTRY
 
 SMALL = Params(L=0.03, dx=20e-6)  # 1500 springs, a/dx = 253
 
@@ -148,7 +148,7 @@ def _is_5_smooth(m):
 
 
 def test_fast_length_is_the_largest_5_smooth_length():
-    from mdroll.ensemble.fft import fast_length
+    from mdroll.fft import fast_length
 
     smooth = [m for m in range(1, 5001) if _is_5_smooth(m)]
     for limit in range(1, 5001):
@@ -249,10 +249,10 @@ def test_row_bounds_against_numpy(kernel_device, threads):
     evenly, then per row: numpy's min and max, bit for bit."""
     import warp as wp
 
-    from mdroll.ensemble.prepare import _row_bounds
+    from mdroll.forces.prepared import row_bounds
 
     host = np.random.default_rng(3).normal(size=(3, 5003))
-    bounds = _row_bounds(wp.array(host, dtype=wp.float64, device=kernel_device), kernel_device, threads)
+    bounds = row_bounds(wp.array(host, dtype=wp.float64, device=kernel_device), kernel_device, threads)
     np.testing.assert_array_equal(bounds.numpy(), np.stack([host.min(axis=1), host.max(axis=1)], axis=1))
 
 
@@ -263,7 +263,7 @@ def test_prepared_bounds_and_prefix_sums_against_numpy(kernel_device, boundary, 
     CUDA; h_max not given) or from the tree's root (h_max given); the prefix sums, one scan over
     the batch read as overlapping rows, give numpy's row-wise cumulative sums as differences
     S_j - S_0 (eq 18)."""
-    from mdroll.ensemble.prepare import prepare_lines
+    from mdroll.forces.prepare import prepare_lines
 
     p = SMALL
     lines = _lines(p, 4, 3, kernel_device)
@@ -280,8 +280,8 @@ def test_prepared_bounds_and_prefix_sums_against_numpy(kernel_device, boundary, 
 def test_force_offset_is_subtracted_in_the_kernel(kernel_device, algorithm):
     """``launch_force(offset=F_N)`` writes F - F_N (the pipeline's series) to within the one
     rounding of the subtraction (a fused multiply-add may round k u - F_N once instead of twice)."""
-    from mdroll.ensemble.force import launch_force
-    from mdroll.ensemble.prepare import prepare_lines
+    from mdroll.forces.force import launch_force
+    from mdroll.forces.prepare import prepare_lines
 
     p = SMALL
     prepared = prepare_lines(_lines(p, 8, 3, kernel_device), p, algorithm, "open", p.d0, kernel_device)
@@ -296,7 +296,7 @@ def test_host_edge_geometry_is_the_kernels_bit_for_bit(kernel_device):
     kernel's (per step of the coupled dynamics) are the same operations in the same order."""
     import warp as wp
 
-    from mdroll.ensemble.algorithms import edge_geometry as host_geometry
+    from mdroll.forces.edge import edge_geometry as host_geometry
     from mdroll.kernels.edge import edge_geometry
 
     @wp.kernel
@@ -325,7 +325,7 @@ def test_host_reach_is_the_kernels(kernel_device):
     (placing the wheel, sizing the lift table) equals the kernels', exact squares included."""
     import warp as wp
 
-    from mdroll.ensemble.prepare import reach
+    from mdroll.forces.indenter import reach
     from mdroll.kernels.common import reach_inclusive
 
     @wp.kernel
@@ -351,7 +351,8 @@ def test_coupled_kernels_and_kernel_structs_are_float64():
 
     import warp as wp
 
-    from mdroll.kernels import common, direct, edge, sweep, tree
+    from mdroll.kernels import common, direct, edge, tree
+    from mdroll.kernels import sweep_coupled as sweep
 
     def low_precision(kind) -> bool:
         scalar = getattr(kind, "dtype", kind)

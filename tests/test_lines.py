@@ -61,7 +61,7 @@ def test_inverse_fft_is_numpy_times_n(device, n):
     """irfft_rows is the unnormalized inverse (physics.md section 3's sum, no 1/n) on every
     device, for even and odd n; on CUDA it may overwrite the spectrum, so each call gets a copy."""
     from mdroll.devices import to_warp, warp
-    from mdroll.ensemble.fft import irfft_rows
+    from mdroll.fft import irfft_rows
 
     rng = np.random.default_rng(n)
     spectrum = rng.standard_normal((3, n // 2 + 1)) + 1j * rng.standard_normal((3, n // 2 + 1))

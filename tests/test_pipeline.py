@@ -8,7 +8,7 @@ import pytest
 from reference import direct_force, psd, to_numpy
 
 from mdroll import EnsembleResult, ParameterError, Params, contact_force, rough_lines, run_ensemble, step_range
-from mdroll.ensemble.algorithms import default_algorithm
+from mdroll.forces.registry import default_algorithm
 from mdroll.ensemble.pipeline import H_BOUND_SIGMAS
 
 P = Params(L=0.05, n_real=5)
@@ -29,7 +29,7 @@ def test_averaged_psd_equals_mean_of_numpy_psds(device):
 @pytest.mark.parametrize("window", [False, True])
 def test_decoupled_spectra_are_those_of_the_semi_implicit_euler_response(device, window):
     """The decoupled acceleration PSD, computed bin by bin from the force spectrum and the final
-    state (kernels/spectra.py), against the PSD of a plain sequential loop's series (section 5.1);
+    state (kernels/moments.py), against the PSD of a plain sequential loop's series (section 5.1);
     the Hann window, applied as a three-bin stencil, against the window applied to the series."""
     p = Params(L=0.2, n_real=1)  # ~3.8e4 steps
     lines = rough_lines(p, 1, 1)
@@ -52,7 +52,7 @@ def test_decoupled_spectra_are_those_of_the_semi_implicit_euler_response(device,
 
 def test_coupled_windowed_spectra_are_those_of_the_coupled_series(device):
     """Coupled mode: both series through the FFT, the Hann window as a stencil, against numpy."""
-    from mdroll.ensemble.prepare import prepare_lines
+    from mdroll.forces.prepare import prepare_lines
     from mdroll.ensemble.coupled import coupled_series
 
     p = Params(L=0.03, n_real=2)
@@ -97,7 +97,7 @@ def test_coupled_smooth_line_oscillates_at_omega_0_without_energy_growth(device)
     """Semi-implicit Euler on a smooth line started 1 um off equilibrium: frequency omega_0
     (within 1 %, the linearization), no energy growth over 1e5 steps."""
     from mdroll.devices import warp
-    from mdroll.ensemble.prepare import prepare_lines
+    from mdroll.forces.prepare import prepare_lines
     from mdroll.ensemble.coupled import coupled_series
 
     wp = warp()
@@ -135,7 +135,7 @@ def test_coupled_force_is_the_force_at_the_current_indentation(device, algorithm
     """Eq 13 step by step: every recorded F equals the numpy spring sum (eq 10-12; eq 49 for
     edge) at the wheel's position and at the indentation the recorded d'' implies. On CUDA the
     block's lanes share each step's sum, on the CPU one thread does it all."""
-    from mdroll.ensemble.prepare import prepare_lines
+    from mdroll.forces.prepare import prepare_lines
     from mdroll.ensemble.coupled import coupled_series
     from mdroll.validation.references import edge_force
 
@@ -208,8 +208,8 @@ def test_series_sums_against_numpy_and_a_sequential_loop(device):
     non-finite steps counted, and the decoupled wheel's final state (section 5.1) against a
     plain semi-implicit Euler loop from rest; zeros for the state when not decoupled."""
     from mdroll.devices import to_warp
-    from mdroll.ensemble.spectra import series_sums
-    from mdroll.kernels.spectra import FINAL_V, FINAL_Y, LOST, NOT_FINITE, SUM_DEVIATION, SUM_SQUARES
+    from mdroll.ensemble.psd import series_sums
+    from mdroll.kernels.moments import FINAL_V, FINAL_Y, LOST, NOT_FINITE, SUM_DEVIATION, SUM_SQUARES
 
     p = Params(L=0.05)
     rng = np.random.default_rng(7)
@@ -277,10 +277,10 @@ def test_resumed_run_continues_on_the_device(device, tmp_path, monkeypatch):
 
 
 def test_impulse_response_is_the_euler_step_repeated(device):
-    """Closed-form A^m b (Cayley-Hamilton, kernels/spectra.py) against the semi-implicit Euler
+    """Closed-form A^m b (Cayley-Hamilton, kernels/moments.py) against the semi-implicit Euler
     step applied m times to a unit input (section 5.1), for m up to 2e5 (a phase of ~15 rad)."""
     from mdroll.devices import warp
-    from mdroll.kernels.spectra import euler_impulse_response
+    from mdroll.kernels.moments import euler_impulse_response
 
     wp = warp()
     p = Params()
@@ -305,7 +305,7 @@ def test_impulse_response_is_the_euler_step_repeated(device):
 def test_psd_moments_equal_numpy_mean_and_variance(device, steps, window):
     """The fused spectra kernel against numpy: per-bin mean and M2 of the PSDs of given series."""
     from mdroll.devices import to_warp
-    from mdroll.ensemble.spectra import psd_moments_of_batch
+    from mdroll.ensemble.psd import psd_moments_of_batch
 
     rng = np.random.default_rng(steps)
     force = 3.0 + rng.standard_normal((4, steps))  # a mean to remove (the pipeline removes F_N first)
@@ -323,7 +323,7 @@ def test_psd_moments_equal_numpy_mean_and_variance(device, steps, window):
 def test_an_algorithm_is_added_by_one_registry_entry(monkeypatch):
     """A registry entry is all an algorithm needs: a copy of direct's entry under a new name,
     without a coupled step, gives direct's forces and spectra, and the coupled mode refuses it."""
-    from mdroll.ensemble.algorithms import REGISTRY
+    from mdroll.forces.registry import REGISTRY
 
     monkeypatch.setitem(REGISTRY, "direct-copy", dataclasses.replace(REGISTRY["direct"], name="direct-copy", coupled=None))
     p = Params(L=0.03, n_real=2)

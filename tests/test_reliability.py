@@ -18,7 +18,7 @@ import warp as wp
 from mdroll import EnsembleResult, Params, __version__ as mdroll_version, contact_force, rough_lines, run_ensemble
 from mdroll.cli import LOCK, RUN_OUTPUTS, main as cli_main
 from mdroll.ensemble import batching, checkpoint as checkpoint_module, pipeline, validity
-from mdroll.ensemble.force import reach
+from mdroll.forces.indenter import reach
 from mdroll.ensemble.checkpoint import CHECKPOINT, read_checkpoint
 from mdroll.ensemble.pipeline import NonFiniteError
 
@@ -141,7 +141,7 @@ def test_contact_loss_is_counted_in_both_modes():
 def test_tree_stack_bound_is_checked_before_launch(monkeypatch):
     """The launch checks the length of the stack the kernels are compiled with (one source)."""
     import mdroll.kernels.common as common
-    from mdroll.ensemble.prepare import tree_levels
+    from mdroll.forces.prepared import tree_levels
 
     lines = rough_lines(P, 0, 1)
     levels = len(tree_levels(P.n_points, 1))

@@ -12,7 +12,7 @@ from scipy import integrate, special
 
 from mdroll import EnsembleSpec, ParameterError, Params, physics, rough_lines
 from mdroll.cli import main
-from mdroll.ensemble.spectra import psd_rows, to_host
+from mdroll.ensemble.psd import psd_rows, to_host
 from mdroll.railway import studies
 from mdroll.roughness import bands, filters, measured, models, tables
 

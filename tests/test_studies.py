@@ -136,7 +136,7 @@ def test_forward_euler_grows_the_wheel_oscillation(device, integrator, growth):
     study's option) multiplies it by sqrt(1 + (omega dt)^2) a step: here (1 + (omega_0 dt)^2)^(N/2)."""
     from mdroll.devices import to_warp
     from mdroll.ensemble.coupled import coupled_series
-    from mdroll.ensemble.prepare import prepare_lines
+    from mdroll.forces.prepare import prepare_lines
 
     p = Params(L=0.5, dx=20e-6)
     flat = to_warp(np.zeros((1, p.n_points)), device)

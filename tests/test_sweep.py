@@ -8,18 +8,19 @@ from reference import contact_reach, direct_force, sweep_force, to_numpy
 
 from mdroll import Params, contact_force, rough_lines, step_range
 from mdroll.devices import to_warp
-from mdroll.ensemble.prepare import prepare_lines
-from mdroll.ensemble.sweep import FORMS, stream_layout, sweep_command, sweep_tile
+from mdroll.devices import DeviceLimits
+from mdroll.forces.prepare import prepare_lines
+from mdroll.forces.sweep import FORMS, stream_layout, sweep_command
 
 SMALL = Params(L=0.03, dx=20e-6)  # 1500 springs, a/dx = 253
 
 
-def _sweep(lines, p, boundary, d, device, tile_steps=None, block_dim=None, loads=None, h_max=None, form=None,
-           chunk=None, per_lane=None, segment=None):
+def _sweep(lines, p, boundary, d, device, block_dim=None, h_max=None, form=None, chunk=None, per_lane=None,
+           segment=None):
     lines = to_warp(np.asarray(lines) if isinstance(lines, np.ndarray) else lines, device)  # on the device
     prepared = prepare_lines(lines, p, "sweep", boundary, d, device, h_max=h_max)
-    command, force = sweep_command(prepared, p, d, device, tile_steps=tile_steps, block_dim=block_dim, loads=loads,
-                                   form=form, chunk=chunk, per_lane=per_lane, segment=segment)
+    command, force = sweep_command(prepared, p, d, device, block_dim=block_dim, form=form, chunk=chunk,
+                                   per_lane=per_lane, segment=segment)
     command.launch()
     return to_numpy(force)
 
@@ -73,7 +74,7 @@ def test_reach_is_the_direct_sums_contact_decision(device):
 @pytest.mark.parametrize("H", [0.3, 0.7, 0.9])
 @pytest.mark.parametrize("h0", [0.5e-6, 5e-6])
 def test_sweep_equals_direct(device, boundary, H, h0, form):
-    """Both forms (tiles, sequential) on every device, two indentations."""
+    """Both forms (stream, sequential) on every device, two indentations."""
     p = Params(L=0.04, dx=10e-6, H=H, h0=h0)
     lines = rough_lines(p, seed=7, realizations=3, device=device)
     for d in (p.d0, 0.8 * p.d0):
@@ -114,29 +115,16 @@ def test_tiny_line(device, boundary, form):
     assert np.max(np.abs(_sweep(lines, p, boundary, p.d0, device, form=form) - direct)) <= 1e-12 * p.F_N
 
 
-def test_same_force_whatever_the_form_the_tile_the_block_the_chunk_or_the_batch(device):
-    """Tiles of 16 steps to the default, blocks of 1 to 8 lanes (on the CPU through Warp's
-    cooperative CPU blocks; 64 to 256 on CUDA), sequential chunks of 1 to 4096 steps (launched
-    twice: each thread clears its ring), three lines at once or one by one: the same force to
-    1e-12 F_N."""
-    import warp as wp
-
+def test_same_force_whatever_the_form_the_block_the_chunk_or_the_batch(device):
+    """Sequential chunks of 1 to 4096 steps (launched twice: each thread clears its ring), the
+    stream's layouts, three lines at once or one by one: the same force to 1e-12 F_N, equal to
+    the direct sum's."""
     p = SMALL.replace(h0=2e-6)
     lines = to_numpy(rough_lines(p, seed=4, realizations=3, device="cpu"))
     d = 0.9 * p.d0
-    reference = _sweep(lines, p, "open", d, device, form="tiles")
+    reference = _sweep(lines, p, "open", d, device, form="sequential")
     direct = to_numpy(contact_force(lines, p, "direct", "open", d=d, device=device))
     assert np.max(np.abs(reference - direct)) <= 1e-12 * p.F_N
-    # (tile steps, lanes, loads a lane)
-    variants = [(16, 1, 1), (64, 8, 2)] if device == "cpu" else [(256, 64, 1), (512, 256, 4), (2048, 128, 2), (4096, 256, 2)]
-    enabled = wp.config.enable_cpu_blocks
-    wp.config.enable_cpu_blocks = True
-    try:
-        for variant in variants:
-            force = _sweep(lines, p, "open", d, device, *variant, form="tiles")
-            assert np.max(np.abs(force - reference)) <= 1e-12 * p.F_N, variant
-    finally:
-        wp.config.enable_cpu_blocks = enabled
     for chunk in (1, 7, 64, 4096):
         lines_here = to_warp(lines, device)
         prepared = prepare_lines(lines_here, p, "sweep", "open", d, device)
@@ -161,23 +149,12 @@ def test_same_force_whatever_the_form_the_tile_the_block_the_chunk_or_the_batch(
     assert np.max(np.abs(alone - reference)) <= 1e-12 * p.F_N
 
 
-def test_default_tiles_grow_with_the_band_and_their_blocks_with_the_tile():
-    """Tiles of at least 4 bands (512 steps at least on CUDA, 4096 at most); on CUDA 128 lanes,
-    or 256 for the 4096-step tiles that leave one block a multiprocessor; one lane on the CPU."""
-    assert sweep_tile(44, "cuda:0") == (512, 128)  # thesis scale
-    assert sweep_tile(447, "cuda:0") == (2048, 128)
-    assert sweep_tile(895, "cuda:0") == (4096, 256)
-    assert sweep_tile(3582, "cuda") == (4096, 256)
-    assert sweep_tile(44, "cpu") == (4096, 1)
-    assert sweep_tile(44, "cuda:0", tile_steps=1024) == (1024, 128)
-
-
 def test_prefix_sums_only_for_the_forms_that_read_them(device):
     """The sweep's prepared lines carry no prefix sums (the stream sums its anchors' cores spring
-    by spring, so the CUDA build is the bounds pass alone); the sequential and tiles forms and
-    the coupled step build them on first use, equal to NumPy's cumulative sums, and every form
+    by spring, so the CUDA build is the bounds pass alone); the sequential form and the coupled
+    step build them on first use, equal to NumPy's cumulative sums, and every form
     gives the same force."""
-    from mdroll.ensemble.sweep import sweep_coupled
+    from mdroll.forces.sweep import sweep_coupled
 
     p = SMALL.replace(h0=2e-6)
     lines = to_numpy(rough_lines(p, seed=7, realizations=2, device="cpu"))
@@ -197,37 +174,79 @@ def test_prefix_sums_only_for_the_forms_that_read_them(device):
     assert again.prefix is not None
 
 
-def test_stream_layout_keeps_the_multiprocessor_busy_as_the_band_grows(monkeypatch):
+#: The limits of the GPUs the stream's layouts were tuned on (132 multiprocessors, 228 KiB of
+#: shared memory each, 227 KiB a block), and of a GPU with less shared memory and fewer lanes.
+TUNED = DeviceLimits(multiprocessors=132, shared_per_multiprocessor=228 * 1024, shared_per_block=227 * 1024,
+                     registers_per_multiprocessor=65536, lanes_per_multiprocessor=2048)
+SMALLER = DeviceLimits(multiprocessors=46, shared_per_multiprocessor=100 * 1024, shared_per_block=99 * 1024,
+                       registers_per_multiprocessor=65536, lanes_per_multiprocessor=1536)
+
+
+def test_stream_layout_keeps_the_multiprocessor_busy_as_the_band_grows():
     """On CUDA the first layout of STREAM_LAYOUTS, with the delay line where its ring (chunk +
     2 outer bins) allows, else without (chunk + band bins), that keeps 16 warps resident
     (shared memory, registers): 128 lanes x 8 steps with the delay line at the thesis's reach
     (~1030 springs), without it beyond ~2400 springs and up to bands of ~2000, then 256 lanes;
     None beyond a block's shared memory. Each segment spans at least 16 spans of events and two
     chunks; STREAM_WAVES waves of blocks where the lines allow. A layout asked for is kept."""
-    import mdroll.ensemble.sweep as sweep
+    import mdroll.forces.sweep as sweep
 
-    monkeypatch.setattr(sweep, "is_cuda", lambda device: True)
-    monkeypatch.setattr(sweep, "warp", lambda: type("W", (), {"get_device": lambda device: type("D", (), {"sm_count": 132})}))
-    thesis = stream_layout(42, 1034, 300, 2**20, "cuda:0")
+    thesis = stream_layout(42, 1034, 300, 2**20, TUNED)
     assert (thesis["block_dim"], thesis["per_lane"], thesis["ring"], thesis["delay"], thesis["resident"]) == (
         128, 8, 3328, True, 4)  # 1024 + 2069 bins, 53.6 KiB: 4 blocks, as the 128 registers a lane allow
     waves = sweep.STREAM_WAVES
     assert thesis["segment"] == -(-300 * 2**20 // (waves * 132 * 4) // 1024) * 1024
-    undelayed = stream_layout(42, 1034, 300, 2**20, "cuda:0", delay=False)
+    undelayed = stream_layout(42, 1034, 300, 2**20, TUNED, delay=False)
     assert (undelayed["ring"], undelayed["delay"], undelayed["resident"]) == (1280, False, 4)
-    wide = stream_layout(110, 2700, 256, 2**17, "cuda:0")  # 1024 + 5401 bins would leave 2 blocks
+    wide = stream_layout(110, 2700, 256, 2**17, TUNED)  # 1024 + 5401 bins would leave 2 blocks
     assert (wide["block_dim"], wide["ring"], wide["delay"], wide["resident"]) == (128, 1280, False, 4)
-    fine = stream_layout(2050, 50000, 256, 2**21, "cuda:0")
+    fine = stream_layout(2050, 50000, 256, 2**21, TUNED)
     assert (fine["block_dim"], fine["per_lane"], fine["ring"], fine["delay"], fine["resident"]) == (128, 8, 3328, False, 4)
-    finer = stream_layout(4100, 100000, 256, 2**22, "cuda:0")
+    finer = stream_layout(4100, 100000, 256, 2**22, TUNED)
     assert (finer["block_dim"], finer["per_lane"], finer["ring"], finer["resident"]) == (256, 8, 6400, 2)
     assert finer["segment"] == -(-max(256 * 2**22 // (waves * 132 * 2), 16 * 4100) // 2048) * 2048
-    assert stream_layout(13000, 200000, 64, 2**22, "cuda:0") is None  # 15 Ki bins: more than 227 KiB
-    own = stream_layout(42, 1034, 300, 2**20, "cuda:0", block_dim=64, per_lane=8, delay=True)
+    assert stream_layout(13000, 200000, 64, 2**22, TUNED) is None  # 15 Ki bins: more than 227 KiB
+    own = stream_layout(42, 1034, 300, 2**20, TUNED, block_dim=64, per_lane=8, delay=True)
     assert (own["block_dim"], own["per_lane"], own["ring"], own["delay"]) == (64, 8, 2816, True)
-    monkeypatch.undo()
-    cpu = stream_layout(42, 1034, 3, 1000, "cpu")
+    cpu = stream_layout(42, 1034, 3, 1000, None)
     assert (cpu["block_dim"], cpu["ring"], cpu["delay"]) == (1, 2112, True)
+
+
+def test_device_limits_are_queried_from_the_device(device):
+    """The CPU has no multiprocessor limits (None: its own layout); a CUDA device reports its
+    own, consistent with Warp's, and the thesis's band has a stream layout within them."""
+    import warp as wp
+
+    from mdroll.devices import device_limits
+
+    limits = device_limits(device)
+    if device == "cpu":
+        assert limits is None
+        return
+    assert limits.multiprocessors == wp.get_device(device).sm_count > 0
+    assert 0 < limits.shared_per_block <= limits.shared_per_multiprocessor
+    assert limits.registers_per_multiprocessor > 0 and limits.lanes_per_multiprocessor >= 1024
+    assert device_limits(device) is limits  # queried once
+    assert stream_layout(42, 1034, 300, 2**20, limits) is not None
+
+
+@pytest.mark.parametrize("band,outer", [(42, 1034), (110, 2700), (2050, 50000), (4100, 100000)])
+def test_stream_layout_fits_the_limits_of_another_gpu(band, outer):
+    """On a GPU with less shared memory and fewer lanes a multiprocessor, each layout's ring fits
+    a block's shared memory and at least one block fits a multiprocessor (shared memory,
+    registers, lanes), and its segments fill the device's block slots."""
+    from mdroll.kernels.sweep_stream import BIN_BYTES
+
+    layout = stream_layout(band, outer, 256, 2**20, SMALLER)
+    assert layout is not None
+    shared = layout["ring"] * BIN_BYTES + 1024
+    lanes, registers, resident = layout["block_dim"], layout["max_registers"], layout["resident"]
+    assert shared <= SMALLER.shared_per_block
+    assert 1 <= resident <= SMALLER.shared_per_multiprocessor // shared
+    assert resident * lanes * registers <= SMALLER.registers_per_multiprocessor
+    assert resident * lanes <= SMALLER.lanes_per_multiprocessor
+    assert layout["ring"] >= lanes * layout["per_lane"] + (2 * outer if layout["delay"] else band) + 1
+    assert layout["segment"] % (lanes * layout["per_lane"]) == 0
 
 
 def test_sweep_runs_decoupled_and_coupled_ensembles_as_the_tree():
@@ -261,23 +280,20 @@ def test_coupled_step_equals_the_direct_sum_where_the_wheel_leaves_the_rail(devi
         assert np.max(np.abs(series[algorithm] - series["direct"])) <= 1e-12 * rough.F_N, algorithm
 
 
-def test_band_beyond_the_tiles_int32_sums_runs_sequentially(device):
-    """A band of uncertain contact wider than MAX_BAND springs (a spring below the wheel's reach
-    at every position makes the whole window uncertain) runs in the sequential form, equal to
-    the tree; the tiles or the stream asked for there, a form that does not exist, a stream
+def test_band_beyond_the_streams_int32_sums_runs_sequentially(device):
+    """A band of uncertain contact wider than the stream's ring allows (a spring below the
+    wheel's reach at every position makes the whole window uncertain) runs in the sequential
+    form, equal to the tree; the stream asked for there, a form that does not exist, a stream
     asked to write into a strided ``out``, or the delay line asked for where its ring cannot
     hold a spring's reach, are refused with one clear line, before the kernel runs."""
     from mdroll import ParameterError
-    from mdroll.kernels.sweep import MAX_BAND
 
     a = Params().a
-    p = Params(L=4.2 * a, dx=a / (1.2 * MAX_BAND))
+    p = Params(L=4.2 * a, dx=a / (1.2 * 16383))  # a band of ~19,700 springs a side
     lines = np.zeros((1, p.n_points))
     lines[0, 0] = -2 * p.d0
     tree = to_numpy(contact_force(lines, p, "tree", device=device))
     assert np.max(np.abs(to_numpy(contact_force(lines, p, "sweep", device=device)) - tree)) <= 1e-12 * p.F_N
-    with pytest.raises(ParameterError, match=rf"band of uncertain contact spans \d+ springs .* beyond the {MAX_BAND}"):
-        _sweep(lines, p, "open", p.d0, device, form="tiles")
     with pytest.raises(ParameterError, match="the stream form's ring allows: use form='sequential'"):
         _sweep(lines, p, "open", p.d0, device, form="stream")
     # a smooth line (band 0) whose reach, ~8000 springs, is too long for the delay line's ring
@@ -295,5 +311,5 @@ def test_band_beyond_the_tiles_int32_sums_runs_sequentially(device):
     with pytest.raises(ParameterError, match="^out: the sweep's stream form needs rows of contiguous float64 values, "
                                              "not 16 bytes apart$"):
         sweep_command(prepared, SMALL, SMALL.d0, device, out=strided, form="stream")
-    with pytest.raises(ParameterError, match="form = 'rows': the sweep's forms are 'stream', 'tiles', 'sequential'"):
+    with pytest.raises(ParameterError, match="form = 'rows': the sweep's forms are 'stream', 'sequential'"):
         _sweep(lines, p, "open", p.d0, device, form="rows")

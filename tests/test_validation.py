@@ -15,7 +15,7 @@ import pytest
 from reference import psd, to_numpy
 
 from mdroll import EnsembleSpec, Params, contact_force, physics, rough_lines
-from mdroll.ensemble import algorithms
+from mdroll.forces import registry as algorithms
 from mdroll.ensemble.measure import band_sum, paired_ratio, period_bands
 from mdroll.validation import Band, Check, CheckResult, EnsembleSource, PredictionError
 from mdroll.validation.checks import SIZES, Context, check_exact_algorithms

@@ -44,7 +44,7 @@ def device_timed(fn, device: str, repeats: int, setup=None) -> tuple[float, list
     wall clock."""
     if not device.startswith("cuda"):
         return timed(fn, device, repeats, setup)
-    from ..kernels.clock import hold_stream  # imported here: the kernel module loads Warp
+    from ..kernels.intrinsics import hold_stream  # imported here: the kernel module loads Warp
 
     wp = warp()
     stream = wp.get_stream(device)

@@ -1,12 +1,12 @@
 """The scaling study's record as a table and a plot, with what the registry expects of each
-algorithm (:mod:`mdroll.ensemble.algorithms`)."""
+algorithm (:mod:`mdroll.forces.registry`)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..ensemble.algorithms import REGISTRY
 from ..experiments import Figure, text_table, write_figure
+from ..forces.registry import REGISTRY
 
 
 def expected_exponent(section: str, name: str) -> float | None:

@@ -1,5 +1,5 @@
 """The scaling study behind ``mdroll bench``: measured cost of the registered force algorithms
-(:mod:`mdroll.ensemble.algorithms`: their names, bench variants, expected exponents and sizes).
+(:mod:`mdroll.forces.registry`: their names, bench variants, expected exponents and sizes).
 
 Sections (each a list of timed points, each point the median of ``repeats`` runs on fresh lines,
 the device synchronized before every clock read, after a warm-up whose compile time is
@@ -29,12 +29,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..devices import resolve_device, synchronize, to_warp, usable_devices, warp
-from ..ensemble.algorithms import ALGORITHMS, REGISTRY
-from ..ensemble.force import force_command
 from ..ensemble.lines import rough_lines
 from ..ensemble.pipeline import H_BOUND_SIGMAS, MODES, run_ensemble
-from ..ensemble.prepare import DEFAULT_BAND_LIMIT, DEFAULT_LEAF_SIZE, prepare_lines
 from ..experiments import Ladder, provenance
+from ..forces.force import force_command
+from ..forces.prepare import prepare_lines
+from ..forces.prepared import DEFAULT_BAND_LIMIT, DEFAULT_LEAF_SIZE
+from ..forces.registry import ALGORITHMS, REGISTRY
 from ..params import Params
 from .clocks import CLOCKS, device_timed, timed
 
@@ -105,7 +106,7 @@ def force_time(params: Params, algorithm: str, realizations: int, device: str, r
     """Median time (s) of the force kernel alone and of the per-line build, on fresh lines each
     repeat; ``leaf_size`` and ``band_limit`` tune the tree (:func:`mdroll.contact_force`).
 
-    The launch is recorded outside the clock (:func:`mdroll.ensemble.force.force_command`):
+    The launch is recorded outside the clock (:func:`mdroll.forces.force.force_command`):
     its host work, the same whatever n, would otherwise flatten the slopes of the small GPU
     sizes. ``clock="device"`` times the kernel on CUDA by :func:`device_timed`, ``"wall"`` with
     the host's clock around its launch (:func:`timed`, which adds the launch's own latency)."""

@@ -17,10 +17,10 @@ import numpy as np
 from .._version import __version__
 from ..devices import warp
 from ..files import atomic_write
-from ..kernels.spectra import LOST, SUM_DEVIATION, SUM_SQUARES
+from ..kernels.moments import LOST, SUM_DEVIATION, SUM_SQUARES
 from ..params import ParameterError, Params
 from .result import STAGES
-from .spectra import RunningMoments, array_module, to_host, wavenumbers
+from .psd import RunningMoments, array_module, to_host, wavenumbers
 
 #: The checkpoint's file name in a run's output directory.
 CHECKPOINT = "checkpoint.npz"
@@ -44,7 +44,7 @@ class RunTotals:
     next_batch: int = 1  # the size planned for the next batch (a resumed run starts with it)
 
     def add_moments(self, rows: int, force_moments, accel_moments) -> None:
-        """Merge a batch's PSD moments (:func:`~mdroll.ensemble.spectra.psd_moments_of_batch`) of
+        """Merge a batch's PSD moments (:func:`~mdroll.ensemble.psd.psd_moments_of_batch`) of
         ``rows`` realizations, where they are (queued on the device: nothing waits)."""
         xp = array_module(force_moments)
         if self.force is None:
@@ -57,7 +57,7 @@ class RunTotals:
         self.accel.add_moments(rows, accel_moments)
 
     def add_sums(self, sums: np.ndarray, F_N: float) -> None:
-        """Add a batch's force sums (host rows of :func:`~mdroll.ensemble.spectra.series_sums`:
+        """Add a batch's force sums (host rows of :func:`~mdroll.ensemble.psd.series_sums`:
         deviations from ``F_N``, N) and count its realizations done."""
         mean_deviation = sums[:, SUM_DEVIATION] / self.steps
         variance = np.maximum(sums[:, SUM_SQUARES] / self.steps - mean_deviation**2, 0.0)
@@ -69,10 +69,10 @@ class RunTotals:
     def spectra_on_host(self, params: Params, wait: bool = True) -> tuple[np.ndarray, ...]:
         """``(q, omega, force mean, its stderr, accel mean, its stderr)`` per bin (rad/m, rad/s,
         N^2 m, N^2 m, (m/s^2)^2 m, (m/s^2)^2 m), computed where the moments live and brought to
-        the host in one copy, into page-locked memory on CUDA (the rows are views of it): six
-        separate copies and host arithmetic on 5e5 bins took ~10 ms of a 30 ms thesis-scale run
-        on an H200 (docs/performance.md, v6), one copy into pageable memory ~3
-        (v7d). ``wait=False``: the copy is only queued (:func:`to_host`)."""
+        the host in one copy, into page-locked memory on CUDA (the rows are views of it), not
+        six separate copies and host arithmetic, nor a copy into pageable memory
+        (docs/performance.md, "Spectra"). ``wait=False``: the copy is only queued
+        (:func:`~mdroll.ensemble.psd.to_host`)."""
         force_mean, force_stderr = self.force.mean_and_stderr()
         accel_mean, accel_stderr = self.accel.mean_and_stderr()
         xp = array_module(force_mean)

@@ -5,13 +5,14 @@ from __future__ import annotations
 from ..devices import warp
 from ..kernels.dynamics import COUPLED_LANES, with_integrator
 from ..params import Params
-from .algorithms import contact_constants, coupled_entry
+from ..forces.indenter import contact_constants
+from ..forces.registry import coupled_entry
 
 
 def coupled_series(prepared, params: Params, algorithm: str, device: str, d_start: float | None = None,
                    force_offset: float = 0.0, integrator: str = "semi-implicit"):
     """Force (N, less ``force_offset``) and acceleration d'' (m/s^2) series of eq 13 for
-    prepared lines (:func:`~mdroll.ensemble.prepare.prepare_lines`), by the coupled kernel of
+    prepared lines (:func:`~mdroll.forces.prepare.prepare_lines`), by the coupled kernel of
     the algorithm's registry entry; the wheel starts at indentation ``d_start`` (m, default d0)
     at rest. Contact is lost where F = 0. An algorithm without a coupled step is refused
     (ParameterError). ``integrator``: one of :data:`~mdroll.kernels.dynamics.INTEGRATORS`

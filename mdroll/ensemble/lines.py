@@ -9,9 +9,9 @@ import numpy as np
 
 from ..devices import is_cuda, resolve_device, warp
 from ..params import ParameterError, Params
-from . import buffers
+from .. import buffers
 from .batching import check_count_fits
-from .fft import irfft_rows
+from ..fft import irfft_rows
 
 #: Modes a thread of the CPU's random spectrum makes (:func:`mdroll.kernels.lines.random_phase_spans`).
 CPU_SPAN = 4096
@@ -103,7 +103,7 @@ def rough_lines(params: Params, seed: int, realizations, device: str = "cpu", ro
 
 def random_spectra(params: Params, seed: int, realizations, device: str, roughness=None):
     """The (R, n/2 + 1) half spectra (``wp.vec2d``, on ``device``) whose unnormalized inverse
-    real FFTs (:func:`mdroll.ensemble.fft.irfft_rows`) are the lines of :func:`rough_lines`,
+    real FFTs (:func:`mdroll.fft.irfft_rows`) are the lines of :func:`rough_lines`,
     already scaled to RMS h0 (or at their absolute level)."""
     from ..kernels.lines import line_scales, random_phase_spans, random_phase_spectrum
     from ..roughness.models import from_params, mode_amplitude_table, resolve_level
@@ -145,7 +145,7 @@ def random_spectra(params: Params, seed: int, realizations, device: str, roughne
 def _power_law_amplitudes(bins: int, k_first: int, k_last: int, H: float, device: str):
     """The amplitudes ``a_k`` of the default spectrum on ``bins`` modes (eq 33, up to the line's
     scale; :func:`mdroll.kernels.lines.mode_amplitudes`) and their sum of squares, on ``device``:
-    the same for every batch of a run, so made once (5e5 powers took ~9 ms on one CPU core)."""
+    the same for every batch of a run, so made once (a power a mode)."""
     from ..kernels.lines import mode_amplitudes
 
     wp = warp()

@@ -1,7 +1,7 @@
 """The ensemble pipeline: lines -> force -> wheel response -> spectra -> running means, batch by batch.
 
 :func:`run_ensemble` composes the parts, each in its own module: the force algorithms
-(:mod:`.force`), the coupled dynamics (:mod:`.coupled`), the spectra (:mod:`~mdroll.ensemble.spectra`), batch
+(:mod:`mdroll.forces`), the coupled dynamics (:mod:`.coupled`), the spectra (:mod:`.psd`), batch
 sizing (:mod:`.batching`), the accumulated totals and their checkpoint (:mod:`.checkpoint`) and
 the result (:mod:`.result`). Here: the batch loop, its stage clock and the progress bar.
 """
@@ -18,20 +18,22 @@ import numpy as np
 
 from ..devices import cpu_cores, is_cuda, queue_on, resolve_device, to_warp, warp
 from ..kernels.dynamics import INTEGRATORS
-from ..kernels.spectra import NOT_FINITE
+from ..kernels.moments import NOT_FINITE
 from ..params import ParameterError, Params
-from . import buffers
-from .algorithms import algorithm_entry, coupled_entry, default_algorithm
-from .arguments import check_choice, check_flag, check_integer, check_params
+from .. import buffers
+from ..arguments import check_choice, check_flag, check_integer, check_params
+from ..forces.force import launch_force
+from ..forces.prepare import prepare_lines
+from ..forces.prepared import DEFAULT_LEAF_SIZE
+from ..forces.registry import algorithm_entry, coupled_entry, default_algorithm
+from ..forces.steps import BOUNDARIES
 from .batching import check_batch_fits, check_run_fits, default_batch
 from .checkpoint import RunTotals
 from .coupled import coupled_series
-from .force import launch_force
 from .lines import check_seed, realization_indices, rough_lines
-from .prepare import BOUNDARIES, DEFAULT_LEAF_SIZE, prepare_lines
 from ..roughness.models import from_params, line_rms
 from .result import EnsembleResult
-from .spectra import psd_moments_of_batch, series_sums, to_host
+from .psd import psd_moments_of_batch, series_sums, to_host
 
 MODES = ("decoupled", "coupled")
 #: The open-boundary wheel range of an ensemble is set from d0 + H_BOUND_SIGMAS * (the lines' RMS), not from
@@ -84,8 +86,8 @@ def run_ensemble(
     section 5.1), or the coupled dynamics of eq 13 (``mode="coupled"``; refused for an
     algorithm without a coupled step) -> PSDs (section 6, optional Hann ``window``) -> running
     per-bin mean and variance. Memory stays O(batch x n). ``algorithm``: a registry entry
-    (:data:`~mdroll.ensemble.algorithms.ALGORITHMS`), by default the mode's
-    (:data:`~mdroll.ensemble.algorithms.DEFAULT_ALGORITHMS`). ``leaf_size``: springs per tree leaf.
+    (:data:`~mdroll.forces.registry.ALGORITHMS`), by default the mode's
+    (:data:`~mdroll.forces.registry.DEFAULT_ALGORITHMS`). ``leaf_size``: springs per tree leaf.
 
     ``checkpoint``: a file the running accumulators are written to after every batch,
     atomically (temporary file, then rename). With a checkpoint, batches are also sized by
@@ -291,12 +293,12 @@ class _CpuWorkers:
     """The CPU path's threads: each part of a batch (:data:`CPU_CHUNK` realizations) is run
     through lines, force and spectra by the next free one of ``threads`` Python threads (Warp's
     CPU launches and FFTW release the GIL; each thread's FFTs take one FFTW thread), into
-    arrays the thread keeps from part to part (:mod:`.buffers`); the parts' moments are merged
+    arrays the thread keeps from part to part (:mod:`mdroll.buffers`); the parts' moments are merged
     in their order, so the result does not depend on the number of threads or on which thread
     ran which part.
 
     ``serial`` is a lock that one thread holds at a time: Warp 1.19 keeps the shared memory of a
-    CPU tile kernel (the coupled dynamics; the sweep's tiles, which only CUDA runs by default)
+    CPU tile kernel (the coupled dynamics; the sweep's stream, which only CUDA runs by default)
     behind one pointer per module, so two of them must not run at once (they crashed); the
     decoupled force kernels are plain launches on the CPU. ``loading`` is held through each
     thread's first part: Warp 1.19 loads a module's CPU code at its first launch without a
@@ -322,7 +324,7 @@ class _CpuWorkers:
         return self.pool.map(run, parts) if self.pool else map(run, parts)
 
     def _run(self, work, part):
-        from .fft import fftw_threads
+        from ..fft import fftw_threads
 
         state = self.local.__dict__
         first = not state
@@ -353,8 +355,8 @@ class _StageClock:
 
     On CUDA each stage is bracketed by two events on the device's stream, read by :meth:`settle`
     after the batch's one wait: the host queues a stage while the device still runs the one
-    before. (Synchronizing around every stage, as before, left the device idle through all the
-    host work between launches: ~2 ms of a 25 ms thesis-scale run on an H200.) A stage's time
+    before (synchronizing around every stage would leave the device idle through all the host
+    work between launches). A stage's time
     is then the device's, from reaching the stage's first command to finishing its last. On
     the CPU launches are synchronous: wall time.
     """

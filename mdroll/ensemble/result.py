@@ -12,7 +12,7 @@ import numpy as np
 from .._version import __version__
 from ..files import atomic_write
 from ..params import ParameterError, Params
-from .spectra import RunningMoments
+from .psd import RunningMoments
 
 #: The stages of a run whose times a result reports, in the order a batch passes them.
 STAGES = ("generate", "build", "force", "response", "spectra")

@@ -17,7 +17,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from ..params import ParameterError, Params
-from .algorithms import default_algorithm
+from ..forces.registry import default_algorithm
 
 
 @dataclass(frozen=True)

@@ -26,7 +26,7 @@ Expected two-sided PSD per rad/s at omega (rad/s), q = omega / v0 (rad/m)::
 * ``C_{h^2}(q) = 2 integral C_1D(q') C_1D(q - q') dq'`` (Isserlis' factor 2; physics.md section 7,
   eq 48) by FFT convolution (:func:`square_line_psd`).
 * ``w~ = 2 sin(omega dt / 2) / dt`` when the sample interval dt is known (the simulation's
-  semi-implicit Euler wheel: |G|^2 of mdroll.kernels.spectra.ResponseBin is exactly T at
+  semi-implicit Euler wheel: |G|^2 of mdroll.kernels.moments.ResponseBin is exactly T at
   zeta = 0), else omega. ``zeta`` is a damping ratio (measured wheels are damped; in a simulated
   spectrum it absorbs the finite resolution of the undamped resonance).
 * ``leak / w~^2``: the periodogram of a series that is not periodic (the open boundary without a

@@ -1,7 +1,7 @@
 """Coupled wheel dynamics with the semi-implicit (symplectic) Euler step (physics.md section 5, eq 13).
 
 Time is sequential per realization; one block per realization shares each step's spring sum.
-The decoupled response (section 5.1) is linear and needs no time loop: kernels/spectra.py.
+The decoupled response (section 5.1) is linear and needs no time loop: kernels/moments.py.
 Semi-implicit Euler: ``v += dt a(y)`` first, then ``y += dt v`` with the new v; plain forward
 Euler grows the oscillation energy by ~34 % over 10^6 steps at the defaults. Forward Euler
 (``y += dt v`` with the old v, then ``v += dt a``) is the thesis's scheme ("Euler", section 3.4):

@@ -13,12 +13,12 @@ GOLDEN_GAMMA = wp.constant(wp.uint64(0x9E3779B97F4A7C15))
 MIX_MULTIPLIER_1 = wp.constant(wp.uint64(0xBF58476D1CE4E5B9))
 MIX_MULTIPLIER_2 = wp.constant(wp.uint64(0x94D049BB133111EB))
 
-#: Threads sharing a row in the bounds reduction on CUDA, and the loads each has in flight: 300
-#: rows of 2^20 took 1.16 ms on an H200 at 512 threads, 1.86 / 1.41 / 1.51 / 1.94 ms at 256 /
-#: 1024 / 2048 / 4096 (more threads, more partials for each row's one thread to combine).
+#: Threads sharing a row in the bounds reduction on CUDA, and the loads each has in flight: fewer
+#: threads leave the loads' latency exposed, more leave more partials for each row's one thread
+#: to combine (docs/performance.md, "Preparing the lines").
 BOUNDS_THREADS = 512
 BOUNDS_UNROLL = 8
-#: Partials a thread combines in the middle stage of the bounds reduction (prepare.py).
+#: Partials a thread combines in the middle stage of the bounds reduction (forces/prepared.py).
 BOUNDS_GROUP = 32
 
 
@@ -74,7 +74,7 @@ def line_scales(
 ):
     """The factor on each row's amplitudes that makes the line's RMS ``target`` (m; h0), by
     Parseval before the inverse FFT instead of a pass over the line after: for the unnormalized
-    inverse (``mdroll.ensemble.fft.irfft_rows``)
+    inverse (``mdroll.fft.irfft_rows``)
     ``mean(h^2) = scale^2 (2 sum_{0 < k < n/2} a_k^2 + (a_{n/2} cos phi_{n/2})^2)``, with
     ``sum_of_squares[0] = sum_k a_k^2`` over the whole half spectrum. Only the Nyquist mode
     (``nyquist`` = n/2 when the line has one, else -1) is real, so only its share depends on
@@ -126,8 +126,7 @@ def random_phase_spectrum(
     Nyquist mode (k = ``nyquist``) of a real line is real: ``X_{n/2} = scales[r] a_{n/2} cos(phi)``.
 
     Launched over ``(R, ceil(bins / 2))``: thread j makes modes 2j and 2j + 1, whose hashes and
-    sines overlap (1.65 -> 1.50 ms at 300 x 2^19 modes on an H200,
-    docs/performance.md, v7f).
+    sines overlap (docs/performance.md, "Rough lines").
     """
     r, j = wp.tid()
     k = 2 * j
@@ -148,7 +147,7 @@ def random_phase_spans(
 ):
     """:func:`random_phase_spectrum`'s modes (the same values) for the CPU: thread j of row r
     makes modes ``j span .. (j + 1) span - 1``. Warp's CPU launch runs its threads one after
-    another, and a thread for every two modes cost ~2.4 of 21 ms a row of 5e5 modes."""
+    another, so a thread for every two modes would spend its time on the launch's overhead."""
     r, j = wp.tid()
     for k in range(j * span, wp.min((j + 1) * span, spectrum.shape[1])):
         spectrum[r, k] = phase_mode(keys, amplitudes, nyquist, scales, r, k)
@@ -179,8 +178,8 @@ def row_min_max(partial: wp.array2d(dtype=wp.vec2d), n_blocks: int, bounds: wp.a
 def strided_min_max(h: wp.array2d(dtype=wp.float64), n: int, threads: int, out: wp.array2d(dtype=wp.vec2d)):
     """(min h, max h) over springs t, t + threads, ... of each row, for thread t: neighbouring
     threads read neighbouring springs (coalesced), the partials of the row bounds. A thread has
-    BOUNDS_UNROLL loads in flight at once, so that the pass is not bound by each load's latency
-    (~0.65 ms for the bytes of 300 x 2^20 on an H200)."""
+    BOUNDS_UNROLL loads in flight at once, so that the pass is bound by the memory's bandwidth,
+    not by each load's latency."""
     r, t = wp.tid()
     lo = h[r, t]
     hi = lo

@@ -1,6 +1,6 @@
 """The sweep's stream form: a block sweeps a long segment of one row in chunks, carrying its totals
 and its pending events from chunk to chunk (physics.md section 4; the sweep's exact O(n) force at
-fixed indentation, :mod:`mdroll.kernels.sweep` for the events and the reach M_i).
+fixed indentation, :mod:`mdroll.kernels.sweep_sequential` for the events and the reach M_i).
 
 Per block: row r and the steps of one segment, ``c = first + s`` for s in [s_begin, s_end), in
 chunks of ``T = lanes x S`` steps, lane l owning the S consecutive steps ``c0 + l S + q``.
@@ -31,9 +31,9 @@ sum stays below band (band + 1)), and the values in a 16-bit low limb and a high
 sized from the band so that no limb sum passes 2^31).
 
 Chunk: (1) each lane adds the events of its S entering springs (loaded while the chunk before
-ran, so that their latency overlaps a chunk's work: 2.84-2.86 against 3.06 ms at thesis scale
-on an H200) and, without the delay line, of its S leaving springs to the ring (shared-memory
-int32 atomics), and starts loading the next chunk's entering springs; barrier. (2) each lane reads its S
+ran, so that their latency overlaps a chunk's work) and, without the delay line, of its S
+leaving springs to the ring (shared-memory int32 atomics), and starts loading the next chunk's
+entering springs; barrier. (2) each lane reads its S
 bins and composes their transitions into one affine map of the state (``N -> N + a``,
 ``P -> P - k N + b``, ``Z -> Z + 2 k P - k^2 N + c``, ``Y -> Y + y`` over k steps): warp
 shuffles scan the lanes' maps, the warps' totals go through shared memory (one barrier), and
@@ -53,7 +53,9 @@ import functools
 import warp as wp
 
 from .common import exact_double, reach_strict, settle_reach
-from .sweep import sync_block
+from .intrinsics import (load_float, prefetch_float, row_address, set_shared_float, set_shared_float_words, set_shared_int,
+                         set_shared_int64, shared_add, shared_float, shared_float_words, shared_int, shared_int64,
+                         shuffle_up, shuffle_xor, shuffle_xor_float, store_float, sync_block, sync_warp)
 
 #: Events a bin can count of each kind: entries add 1 to the bin's count word, leavers 2^16.
 COUNT_SHIFT = 16
@@ -63,8 +65,8 @@ COUNT_SHIFT = 16
 MAX_STREAM_BAND = 16382
 #: A chunk's ring needs T + band bins (T + 2 outer + 1 with the delay line); it comes in multiples
 #: of RING_UNIT bins, each bin four int32 words, one in each of four arrays (a warp's atomics on
-#: consecutive bins then meet 32 banks, not 8 as with a bin's words together: 3.79 against 4.09
-#: ms at thesis scale), padded one word in 32.
+#: consecutive bins then meet 32 banks, not 8 as with a bin's words together), padded one word
+#: in 32.
 RING_UNIT = 256
 BIN_WORDS = 4
 BIN_BYTES = BIN_WORDS * 4 * 33 / 32
@@ -73,154 +75,6 @@ BIN_BYTES = BIN_WORDS * 4 * 33 / 32
 ANCHOR_LOADS = 2
 #: float64 values an L2 cache line holds: a prefetch asks for one line.
 LINE = 16
-
-
-@wp.func_native("""
-#if defined(__CUDA_ARCH__)
-atomicAdd(((int*)base) + i, value);
-#else
-((int*)base)[i] += value;
-#endif
-""")
-def shared_add(base: wp.uint64, i: int, value: int):
-    """``base[i] += value`` on an int32 in shared memory, atomically between a block's lanes."""
-    ...
-
-
-@wp.func_native("""return ((int*)base)[i];""")
-def shared_int(base: wp.uint64, i: int) -> int:
-    """The int32 at ``base[i]`` in shared memory."""
-    ...
-
-
-@wp.func_native("""((int*)base)[i] = value;""")
-def set_shared_int(base: wp.uint64, i: int, value: int):
-    """``base[i] = value`` for an int32 in shared memory."""
-    ...
-
-
-@wp.func_native("""
-int* words = (int*)base;
-long long bits;
-memcpy(&bits, &value, sizeof(bits));
-words[i] = (int)bits;
-words[i + stride] = (int)(bits >> 32);
-""")
-def set_shared_float_words(base: wp.uint64, i: int, stride: int, value: wp.float64):
-    """A float64 into the int32 words ``base[i]`` (low half) and ``base[i + stride]`` (high half)
-    in shared memory."""
-    ...
-
-
-@wp.func_native("""
-const int* words = (const int*)base;
-long long bits = ((long long)words[i + stride] << 32) | (unsigned)words[i];
-double value;
-memcpy(&value, &bits, sizeof(value));
-return value;
-""")
-def shared_float_words(base: wp.uint64, i: int, stride: int) -> wp.float64:
-    """The float64 of :func:`set_shared_float_words`."""
-    ...
-
-
-@wp.func_native("""
-#if defined(__CUDA_ARCH__)
-__syncwarp();
-#endif
-""")
-def sync_warp():
-    """A warp's barrier (CUDA; nothing on the CPU, where a block is one lane)."""
-    ...
-
-
-@wp.func_native("""return (uint64_t)(((char*)a.data) + (size_t)r * (size_t)a.strides[0]);""")
-def row_address(a: wp.array2d(dtype=wp.float64), r: int) -> wp.uint64:
-    """The address of ``a[r, 0]`` (rows contiguous: the launcher checks)."""
-    ...
-
-
-@wp.func_native("""return ((const double*)base)[i];""")
-def load_float(base: wp.uint64, i: int) -> wp.float64:
-    """``base[i]`` for a float64 in global memory (one address computation less than Warp's
-    strided indexing a load)."""
-    ...
-
-
-@wp.func_native("""
-#if defined(__CUDA_ARCH__)
-asm volatile("prefetch.global.L2 [%0];" :: "l"(((const double*)base) + i));
-#endif
-""")
-def prefetch_float(base: wp.uint64, i: int):
-    """Ask the L2 cache for the 128-byte line holding ``base[i]`` (CUDA; nothing on the CPU)."""
-    ...
-
-
-@wp.func_native("""((double*)base)[i] = value;""")
-def store_float(base: wp.uint64, i: int, value: wp.float64):
-    """``base[i] = value`` for a float64 in global memory."""
-    ...
-
-
-@wp.func_native("""((double*)base)[i] = value;""")
-def set_shared_float(base: wp.uint64, i: int, value: wp.float64):
-    """``base[i] = value`` for a float64 in shared memory."""
-    ...
-
-
-@wp.func_native("""return ((double*)base)[i];""")
-def shared_float(base: wp.uint64, i: int) -> wp.float64:
-    """The float64 at ``base[i]`` in shared memory."""
-    ...
-
-
-@wp.func_native("""return ((long long*)base)[i];""")
-def shared_int64(base: wp.uint64, i: int) -> wp.int64:
-    """The int64 at ``base[i]`` in shared memory."""
-    ...
-
-
-@wp.func_native("""((long long*)base)[i] = value;""")
-def set_shared_int64(base: wp.uint64, i: int, value: wp.int64):
-    """``base[i] = value`` for an int64 in shared memory."""
-    ...
-
-
-@wp.func_native("""
-#if defined(__CUDA_ARCH__)
-return __shfl_up_sync(0xffffffffu, (long long)value, delta);
-#else
-return value;
-#endif
-""")
-def shuffle_up(value: wp.int64, delta: int) -> wp.int64:
-    """The value of the lane ``delta`` below in the warp (CUDA; every lane of the warp must call)."""
-    ...
-
-
-@wp.func_native("""
-#if defined(__CUDA_ARCH__)
-return __shfl_xor_sync(0xffffffffu, (long long)value, mask);
-#else
-return value;
-#endif
-""")
-def shuffle_xor(value: wp.int64, mask: int) -> wp.int64:
-    """The value of lane ``lane ^ mask`` of the warp (CUDA; every lane of the warp must call)."""
-    ...
-
-
-@wp.func_native("""
-#if defined(__CUDA_ARCH__)
-return __shfl_xor_sync(0xffffffffu, value, mask);
-#else
-return value;
-#endif
-""")
-def shuffle_xor_float(value: wp.float64, mask: int) -> wp.float64:
-    """The float64 of lane ``lane ^ mask`` of the warp (CUDA; every lane of the warp must call)."""
-    ...
 
 
 #: An affine map of the state over k steps (k implicit): (a, b, c, y), see the module docstring.
@@ -582,7 +436,7 @@ def stream_kernel(block_dim: int, per_lane: int, ring: int, max_registers: int |
             # into its first two words (its other two cleared), and the warp then writes its
             # steps' forces out in order, adjacent lanes to adjacent steps, clearing those words
             # (a lane storing its own S consecutive steps would write 8 bytes of each 32-byte
-            # sector a store: 4.09 against 3.0 ms without any store at thesis scale)
+            # sector a store)
             for q in range(S):
                 at = slot(head, lane * S + q)
                 state = step_bin(state, base, at, near)

@@ -59,9 +59,8 @@ from .dynamics import coupled_dynamics
 #: Nodes are pushed as ``(index << LEVEL_BITS) | level`` (levels < 2^LEVEL_BITS = 32).
 LEVEL_BITS = wp.constant(5)
 LEVEL_MASK = wp.constant((1 << LEVEL_BITS) - 1)
-#: Register cap of the main kernel: 128 lets 16 warps share a streaming multiprocessor. On an
-#: H100, thesis scale took 9.8 ms against 14.2 uncapped (255) or 160, and 11.7 at 96
-#: (docs/performance.md, v8).
+#: Register cap of the main kernel: 128 lets 16 warps share a streaming multiprocessor, the
+#: fastest of the caps compared (docs/performance.md, "Tree").
 TREE_MAX_REGISTERS = 128
 #: A lifted height (m) below every indenter depth: a masked spring's displacement is negative.
 NO_CONTACT = wp.constant(wp.float64(-1.0e300))

@@ -17,10 +17,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import physics
-from ..ensemble.force import contact_force
+from ..forces.force import contact_force
 from ..ensemble.lines import rough_lines
 from ..ensemble.spec import EnsembleSpec, run_specs
-from ..ensemble.spectra import psd_rows, to_host
+from ..ensemble.psd import psd_rows, to_host
 from ..experiments import Ladder, Registry, provenance
 from ..params import Params
 from ..roughness import bands, filters, measured, models

@@ -101,7 +101,7 @@ class Runner:
     def spec(self, params, realizations: int, **settings) -> EnsembleSpec:
         """A spec of ``realizations`` realizations from index 0 at this study's seed: decoupled,
         open and the registry's default algorithm of the mode (the fastest exact one,
-        :data:`mdroll.ensemble.algorithms.DEFAULT_ALGORITHMS`) unless ``settings`` say otherwise."""
+        :data:`mdroll.forces.registry.DEFAULT_ALGORITHMS`) unless ``settings`` say otherwise."""
         return EnsembleSpec(params=params, seed=self.seed, realizations=realizations, **settings)
 
     def run(self, specs: list) -> list:

@@ -21,10 +21,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import physics
-from ..ensemble.algorithms import REGISTRY
+from ..forces.registry import REGISTRY
 from ..ensemble.measure import Z_SIGMA, independent_ratio, paired_ratio, period_bands
 from ..ensemble.spec import EnsembleSpec
-from ..ensemble.spectra import wavenumbers
+from ..ensemble.psd import wavenumbers
 from ..experiments import Ladder, Registry
 from ..params import Params
 from .api import Band, Check, CheckResult

@@ -22,12 +22,12 @@ import numpy as np
 
 from ..devices import resolve_device
 from ..ensemble.batching import default_batch
-from ..ensemble.force import contact_force
+from ..forces.force import contact_force
 from ..ensemble.lines import rough_lines
 from ..ensemble.pipeline import progress_bar
 from ..ensemble.result import EnsembleResult
 from ..ensemble.spec import EnsembleSpec, run_specs
-from ..ensemble.spectra import array_rows, psd_rows, to_host, wavenumbers
+from ..ensemble.psd import array_rows, psd_rows, to_host, wavenumbers
 from .cache import NoCache
 
 #: Per-realization PSD rows are kept at least up to this many q_min (the bands the built-in

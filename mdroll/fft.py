@@ -16,7 +16,7 @@ import threading
 
 import numpy as np
 
-from ..devices import cpu_cores, cupy_stream, cupy_view, is_cuda, warp
+from .devices import cpu_cores, cupy_stream, cupy_view, is_cuda, warp
 from . import buffers
 
 
@@ -31,8 +31,8 @@ def _cpu_plan(kind: str, n: int):
     which never scales (pyfftw's ``__call__`` would).
 
     Planned as pyfftw's ``interfaces.numpy_fft`` plans them (FFTW_ESTIMATE, input preserved,
-    SIMD-aligned rows), so a line is the same to the bit as before the plans were kept here
-    (and whatever the FFTW threads). Kept per thread: a plan runs on one thread's rows at a time."""
+    SIMD-aligned rows), so a line is the same to the bit as through those interfaces (and
+    whatever the FFTW threads). Kept per thread: a plan runs on one thread's rows at a time."""
     import pyfftw
 
     plans = _plans.__dict__.setdefault("plans", {})
@@ -56,8 +56,7 @@ def _cpu_rows(plan, x: np.ndarray, out: np.ndarray) -> None:
     """``out[i] = transform(x[i])`` for each row by a plan of :func:`_cpu_plan`: in place of the
     caller's rows where they are aligned as the plan's (no copy), else through the plan's own.
     The forward plan always reads a copy in its own row: the copy streams the row into the cache
-    ahead of FFTW's strided passes (995,328 points, one core: ~8.2 ms a row with the copy, ~10.2
-    without)."""
+    ahead of FFTW's strided passes, which then run faster than on the caller's row."""
     plan, own_in, own_out, copy_in = plan
     alignment = plan.input_alignment
     for src, dst in zip(x, out):
@@ -73,8 +72,8 @@ def _cpu_rows(plan, x: np.ndarray, out: np.ndarray) -> None:
 
 def fast_length(limit: int) -> int:
     """The largest ``2^a 3^b 5^c <= limit`` (limit >= 1): a length both cuFFT and FFTW transform
-    at full speed. On an H200, cuFFT's real FFT of 300 rows of 1,046,492 = 4 x 397 x 659 points
-    took 17.5 ms, of 1,036,800 = 2^10 3^4 5^2 points 5.3 ms (docs/performance.md, v5)."""
+    at full speed; a length with large prime factors takes several times longer
+    (docs/performance.md, "FFT lengths")."""
     if limit < 1:
         raise ValueError(f"limit = {limit!r}: it must be at least 1")
     best = 1
@@ -127,9 +126,9 @@ def irfft_rows(spectrum, n: int, device: str):
 
     ``spectrum`` is a Warp ``vec2d`` array (or complex NumPy/CuPy array) on ``device``; on CUDA
     the transform overwrites it. On CUDA the cached cuFFT plan runs on the spectrum's own memory:
-    CuPy's ``irfft`` would first copy a view like this one, and scale by 1/n in a second pass,
-    ~1.8 ms of the 7.1 it took at 300 x 2^20 on an H200 (docs/performance.md, v7c).
-    Returns a float64 NumPy array on the CPU (within :func:`mdroll.ensemble.buffers.reused`, the
+    CuPy's ``irfft`` would first copy a view like this one, and scale by 1/n in a second pass
+    (docs/performance.md, "Rough lines").
+    Returns a float64 NumPy array on the CPU (within :func:`mdroll.buffers.reused`, the
     thread's buffer "lines"), a float64 Warp array on CUDA.
     """
     wp = warp()
@@ -157,7 +156,7 @@ def irfft_rows(spectrum, n: int, device: str):
 
 def rfft_rows(x, device: str, name: str = "half spectrum"):
     """Forward real FFT of each row (float64, shape (R, n)): complex128 (R, n // 2 + 1); NumPy on
-    the CPU (within :func:`mdroll.ensemble.buffers.reused`, the thread's buffer ``name``), CuPy
+    the CPU (within :func:`mdroll.buffers.reused`, the thread's buffer ``name``), CuPy
     on CUDA."""
     if is_cuda(device):
         import cupy

@@ -1,8 +1,8 @@
 """Contact force of a batch of rough lines by the registered algorithms (physics.md section 4).
 
-:func:`contact_force` is the entry point; :func:`force_command` launches the force kernel of an
-algorithm's registry entry (:mod:`.algorithms`) on lines prepared by
-:func:`~mdroll.ensemble.prepare.prepare_lines`, which the dynamics reuse.
+:func:`contact_force` is the public entry point; :func:`force_command` records the force launch
+of an algorithm's registry entry (:mod:`mdroll.forces.registry`) on lines prepared by
+:func:`~mdroll.forces.prepare.prepare_lines`, which the dynamics reuse.
 """
 
 from __future__ import annotations
@@ -11,27 +11,15 @@ import math
 
 import numpy as np
 
+from ..arguments import check_choice, check_params, check_positive, check_real, check_tree_options
 from ..devices import device_of, resolve_device, to_warp, warp
 from ..params import ParameterError, Params
-from .algorithms import DEFAULT_ALGORITHMS, LIFTS, algorithm_entry, indenter_curvature
-from .arguments import check_choice, check_params, check_positive, check_real, check_tree_options
-from .prepare import BOUNDARIES, DEFAULT_BAND_LIMIT, DEFAULT_LEAF_SIZE, PreparedLines, prepare_lines, reach
-
-
-def lift_table(params: Params, d: float, h_top: float, device: str):
-    """The indenter profile ``d - curvature m^2`` (m) at offsets ``|m| <= window + BLOCK`` (the window
-    of possible contact for heights up to ``h_top``, plus the blocked sums' padding), as a Warp
-    array on ``device``, and the index of m = 0: the table the register-blocked kernels read
-    instead of recomputing it. Made by a kernel where it is read: an upload from pageable host
-    memory would wait for the device's queue to drain."""
-    from ..kernels.common import BLOCK, indenter_lifts
-
-    wp = warp()
-    curvature = indenter_curvature(params)
-    reach_out = max(reach(d + h_top, curvature), 0) + BLOCK
-    lifts = wp.empty(2 * reach_out + 1, dtype=wp.float64, device=device)
-    wp.launch(indenter_lifts, dim=lifts.shape, inputs=[d, curvature, reach_out, lifts], device=device)
-    return lifts, reach_out
+from .algorithm import LIFTS
+from .indenter import lift_table
+from .prepare import prepare_lines
+from .prepared import DEFAULT_BAND_LIMIT, DEFAULT_LEAF_SIZE, PreparedLines
+from .registry import DEFAULT_ALGORITHMS, algorithm_entry
+from .steps import BOUNDARIES
 
 
 def launch_force(prepared: PreparedLines, params: Params, algorithm: str, d: float, device: str, out=None,
@@ -51,8 +39,7 @@ def force_command(prepared: PreparedLines, params: Params, algorithm: str, d: fl
                   offset: float = 0.0):
     """The force launch of :func:`launch_force`, recorded (a ``wp.Launch``; run it with
     ``.launch()``), and the array it writes: the host work of a launch (the lift table, the
-    arguments' packing; ~0.2 ms for the tree) is done here once, so that the scaling study
-    can time the kernel alone. The kernel and its arguments come from the algorithm's registry
+    arguments' packing) is done here once, so that the scaling study can time the kernel alone. The kernel and its arguments come from the algorithm's registry
     entry (``force_launch``). Keep ``prepared`` alive while the command may run: it owns the
     memory behind its prefix-sum rows (``prefix_owner``)."""
     wp = warp()
@@ -93,14 +80,14 @@ def contact_force(
         Rough lines on the grid ``x_i = i dx`` with ``n = params.n_points`` (NumPy, Warp or CuPy).
     params : Params
     algorithm : str
-        A name in :data:`~mdroll.ensemble.algorithms.ALGORITHMS` (the registry's entries
+        A name in :data:`~mdroll.forces.registry.ALGORITHMS` (the registry's entries
         describe each): ``direct``, the exact spring sum (eq 10-12) over the window of possible
         contact; ``tree``, the bounding-tree algorithm, equal to ``direct`` to rounding;
         ``edge``, the edge-incremental approximation of eq 49; ``sweep`` (the default), running
         totals over the springs in contact, O(n) and equal to ``direct`` to rounding.
     boundary : {"open", "periodic"}
         ``open``: the thesis's line, wheel from near x_w = a to near L - a
-        (:func:`step_range`); ``periodic``: the wheel visits every spring, indices wrap.
+        (:func:`~mdroll.forces.steps.step_range`); ``periodic``: the wheel visits every spring, indices wrap.
     d : float, optional
         Indentation (m); default ``params.d0`` (eq 14).
     device : str, optional
@@ -118,7 +105,7 @@ def contact_force(
     -------
     force : (R, S) float64, newtons
         NumPy for a NumPy input on the CPU, else a Warp array on the device. The wheel of step s
-        is at ``x_w = (first + s) dx`` with ``first`` from :func:`step_range`.
+        is at ``x_w = (first + s) dx`` with ``first`` from :func:`~mdroll.forces.steps.step_range`.
     """
     wp = warp()
     check_params(params)

@@ -133,9 +133,8 @@ def series_summary(
     (rounding is monotonic) and for no F above ulp(F_N)/2 (3.6e-12 N at 40 kN).
 
     Each thread loads ``SUMMARY_LOADS`` steps before it adds them (in order, so the sums are
-    those of one step at a time): with one load in flight per thread the pass read 1.5 TB/s on
-    an H200, with four 2.6 TB/s, with eight 2.7 TB/s (docs/performance.md,
-    v7a and v7e).
+    those of one step at a time): with one load in flight per thread the pass is bound by the
+    loads' latency, with eight by the memory's bandwidth (docs/performance.md, "Spectra").
     """
     r, t = wp.tid()
     sums = wp.vec4d()
@@ -174,7 +173,7 @@ def merge_moments(count: wp.float64, added: wp.float64, mean: wp.array(dtype=wp.
     """Chan et al.'s merge of ``added`` samples of per-bin mean and M2 (``moments[k]``) into
     ``count`` samples' ``mean[k]`` and ``m2[k]``, in place: ``delta = mean_b - mean``,
     ``mean += delta added / total``, ``m2 += m2_b + delta^2 count added / total`` (the
-    expressions of :meth:`mdroll.ensemble.spectra.RunningMoments.merge`, in one pass)."""
+    expressions of :meth:`mdroll.ensemble.psd.RunningMoments.merge`, in one pass)."""
     k = wp.tid()
     total = count + added
     batch = moments[k]
@@ -217,8 +216,7 @@ def response_bin(j: int, steps: int, omega2: wp.float64, dt: wp.float64) -> Resp
 def response_table(steps: int, omega2: wp.float64, dt: wp.float64, table: wp.array(dtype=ResponseBin)):
     """``table[j] = response_bin(j, steps, omega2, dt)`` for the bins j of a half spectrum: the
     same for every batch of a run, so :func:`psd_moments_kernel` reads it instead of three sines
-    and cosines a bin (on one CPU core they took ~22 ms a launch at 5e5 bins, 11 ms a
-    realization in parts of two)."""
+    and cosines a bin, the most expensive part of the launch on the CPU."""
     j = wp.tid()
     table[j] = response_bin(j, steps, omega2, dt)
 
@@ -280,9 +278,7 @@ def psd_moments_kernel(decoupled: bool, window: bool) -> wp.Kernel:
     """The PSD-moments kernel for one mode: ``decoupled`` (the acceleration's spectrum from the
     force's) or coupled (from its own), with or without the Hann ``window``; each pair is
     compiled apart (``wp.static``), so a kernel carries neither branch nor registers of the
-    others (decoupled without window, 300 x 518,401 bins on an H200: 1.50 ms for one kernel of
-    every mode, 1.19 ms for its own with two rows at a time, 1.10 ms with four;
-    docs/performance.md, v7b to v7e).
+    others, and each thread takes several rows at a time (docs/performance.md, "Spectra").
 
     Launched over the bins k, it writes per bin the mean and M2 (sum of squared deviations)
     over the rows of the two-sided PSDs ``C(q_k) = psd_scale |B_k|^2`` of the force (N^2 m) and

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from ..params import ParameterError, Params
+from .params import ParameterError, Params
 
 
 def check_params(params) -> Params:

@@ -16,8 +16,9 @@ import numpy as np
 from ..devices import array_module, cupy_stream, cupy_view, is_cuda, to_warp, warp
 from ..physics import TWO_PI, euler_resonance_phase, hann_window, psd_from_transform
 from ..params import Params
-from ..kernels.spectra import SUM_COLUMNS
-from .fft import rfft_rows
+from ..kernels.moments import (SUM_COLUMNS, SUMMARY_THREADS, ResponseBin, add_partials, euler_impulse_response,
+                              merge_moments, psd_moments_kernel, response_table, series_summary)
+from ..fft import rfft_rows
 
 
 def wavenumbers(steps: int, dx: float, xp=np):
@@ -79,7 +80,7 @@ def complex_rows(spectrum, device: str):
         return wp.from_dlpack(spectrum.view(cupy.float64).reshape(rows, bins, 2), dtype=wp.vec2d)
     if spectrum.strides[-1] != spectrum.itemsize:
         spectrum = np.ascontiguousarray(spectrum)
-    # a view, also of rows padded to alignment (the FFT's buffers, :mod:`.buffers`)
+    # a view, also of rows padded to alignment (the FFT's buffers, :mod:`mdroll.buffers`)
     return wp.array(spectrum.view(np.float64).reshape(rows, bins, 2), dtype=wp.vec2d, device="cpu", copy=False)
 
 
@@ -89,9 +90,7 @@ def series_sums(deviation, params: Params, device: str, decoupled: bool):
     ``sum u`` (N), ``sum u^2`` (N^2), steps with
     contact lost (F <= 0), non-finite steps and, when ``decoupled``, the state (y_N (m),
     y'_N (m/s)) after the last step of the decoupled wheel started at rest (section 5.1; zeros
-    otherwise). See :func:`mdroll.kernels.spectra.series_summary`."""
-    from ..kernels.spectra import SUMMARY_THREADS, add_partials, series_summary
-
+    otherwise). See :func:`mdroll.kernels.moments.series_summary`."""
     wp = warp()
     rows, steps = deviation.shape
     threads = SUMMARY_THREADS if is_cuda(device) else 1
@@ -109,11 +108,9 @@ def series_sums(deviation, params: Params, device: str, decoupled: bool):
 
 @functools.lru_cache(maxsize=4)
 def _impulse_response(steps: int, phi: float, dt: float, device: str):
-    """The decoupled wheel's ``A^m b`` for m = 0..steps-1 (:func:`mdroll.kernels.spectra.euler_impulse_response`;
+    """The decoupled wheel's ``A^m b`` for m = 0..steps-1 (:func:`mdroll.kernels.moments.euler_impulse_response`;
     ``phi`` rad, ``dt`` s) as a ``wp.vec2d`` array on ``device``: the same for every batch of a
-    run, so made once (three sines a step took ~45 ms for 10^6 steps on one CPU core)."""
-    from ..kernels.spectra import euler_impulse_response
-
+    run, so made once (three sines a step)."""
     wp = warp()
     weights = wp.empty(steps, dtype=wp.vec2d, device=device)
     wp.launch(euler_impulse_response, dim=steps, inputs=[phi, dt, weights], device=device)
@@ -123,10 +120,8 @@ def _impulse_response(steps: int, phi: float, dt: float, device: str):
 @functools.lru_cache(maxsize=4)
 def _responses(steps: int, omega2: float, dt: float, device: str):
     """The decoupled wheel's response at each bin of a half spectrum of ``steps`` steps
-    (:func:`mdroll.kernels.spectra.response_table`; ``omega2`` rad^2/s^2, ``dt`` s) on
+    (:func:`mdroll.kernels.moments.response_table`; ``omega2`` rad^2/s^2, ``dt`` s) on
     ``device``: the same for every batch of a run, so made once."""
-    from ..kernels.spectra import ResponseBin, response_table
-
     wp = warp()
     table = wp.empty(steps // 2 + 1, dtype=ResponseBin, device=device)
     wp.launch(response_table, dim=table.shape, inputs=[steps, omega2, dt, table], device=device)
@@ -136,8 +131,6 @@ def _responses(steps: int, omega2: float, dt: float, device: str):
 @functools.lru_cache(maxsize=4)
 def _no_responses(device: str):
     """A one-bin table for the coupled mode's moments, which read none."""
-    from ..kernels.spectra import ResponseBin
-
     return warp().zeros(1, dtype=ResponseBin, device=device)
 
 
@@ -147,14 +140,12 @@ def psd_moments_of_batch(force, accel, sums, params: Params, device: str, window
     One real FFT of each force row (and of each acceleration row when ``accel`` is given, the
     coupled mode); without ``accel`` the acceleration's spectrum is the decoupled wheel's,
     computed from the force's and the final states in ``sums`` (:func:`series_sums`) bin by bin
-    (:class:`mdroll.kernels.spectra.ResponseBin`): exact, and no acceleration series is needed.
+    (:class:`mdroll.kernels.moments.ResponseBin`): exact, and no acceleration series is needed.
 
     ``sums`` may be on the host or on ``device``. Returns ``(force (K, 2), accel (K, 2),
     not_finite (R,))``: columns mean and M2, and a flag per row whose PSD has NaN or infinity,
     all where the work ran (NumPy on the CPU, CuPy on CUDA; nothing waits for them).
     """
-    from ..kernels.spectra import psd_moments_kernel
-
     wp = warp()
     rows, steps = force.shape
     force_spectrum = complex_rows(rfft_rows(force, device, "force spectrum"), device)
@@ -208,13 +199,11 @@ class RunningMoments:
 
     def add_moments(self, n_b: int, moments) -> None:
         """Merge a batch's (bins, 2) columns of mean and M2 (:func:`psd_moments_of_batch`). On
-        the host in one pass (:func:`mdroll.kernels.spectra.merge_moments`): NumPy's seven took
-        ~7 ms for the two spectra of 5e5 bins, for every part of two realizations of a CPU run."""
+        the host in one pass (:func:`mdroll.kernels.moments.merge_moments`), not NumPy's seven,
+        for every part of the realizations of a CPU run."""
         if array_module(self._mean) is not np or n_b == 0:
             self.merge(n_b, moments[:, 0], moments[:, 1])
             return
-        from ..kernels.spectra import merge_moments
-
         wp = warp()
         columns = wp.array(np.ascontiguousarray(moments).view(np.float64).reshape(-1, 2), dtype=wp.vec2d, device="cpu",
                            copy=False)

@@ -2,13 +2,12 @@
 
 Fresh memory is expensive on the CPU: a multi-megabyte array is new pages, each zeroed by the
 operating system at its first touch (a minor page fault), and freed again when the array goes.
-On the 2-core virtual machine of issue 17 the full default run spent 22.5 s of system time,
-against 32.8 s of user time, on the ~10 fresh arrays of 8 MB a realization that its stages
-made and dropped (docs/performance.md, CPU). Within :func:`reused`, :func:`empty` hands out
+A CPU run whose stages made and dropped about ten such arrays a realization spent a large part
+of its time in the system (docs/performance.md, "CPU"). Within :func:`reused`, :func:`empty` hands out
 under each name the same memory again, so that a worker touches its pages once per run.
 
 Only the stages of one chunk may hold such an array: whatever leaves the chunk (its sums and
-moments) is made by ``wp.empty`` as before.
+moments) is made by ``wp.empty``.
 """
 
 from __future__ import annotations
@@ -18,7 +17,7 @@ import threading
 
 import numpy as np
 
-from ..devices import is_cuda, warp
+from .devices import is_cuda, warp
 
 _current = threading.local()
 
@@ -54,8 +53,8 @@ class Buffers:
 def _host_array(shape: tuple, dtype):
     """A Warp CPU array of ``shape`` in memory from NumPy, aligned to :data:`ROW_ALIGNMENT`: NumPy
     asks Linux for transparent huge pages for arrays of 4 MiB and more (``madvise``), which
-    Warp's own allocation does not (a forward FFT of a row of 995,328 points took 9.7 ms into
-    Warp's memory, 6.9 ms into NumPy's, on one core)."""
+    Warp's own allocation does not, and FFTs into such memory run faster (docs/performance.md,
+    "CPU")."""
     wp = warp()
     nbytes = int(np.prod(shape)) * wp.types.type_size_in_bytes(dtype)
     raw = np.empty(nbytes + ROW_ALIGNMENT, dtype=np.uint8)

@@ -1,0 +1,192 @@
+"""CUDA intrinsics for the kernels, in one place: shared-memory atomics, loads and stores by
+address, barriers, warp shuffles, an L2 prefetch and the GPU's global timer.
+
+Each is a ``wp.func_native`` with a CPU fallback where the kernels also run on the CPU (there a
+block is one lane: a warp's barrier or shuffle does nothing, a block's barrier is Warp's CPU
+block barrier). Addresses are ``wp.uint64``: the kernels take them from Warp arrays and tiles
+and index them with ``int`` offsets. The :data:`hold_stream` kernel uses the timer to hold a
+CUDA stream for device-clock timing (:func:`mdroll.bench.study.device_timed`).
+"""
+
+import warp as wp
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+atomicAdd(((int*)base) + i, value);
+#else
+((int*)base)[i] += value;
+#endif
+""")
+def shared_add(base: wp.uint64, i: int, value: int):
+    """``base[i] += value`` on an int32 in shared memory, atomically between a block's lanes."""
+    ...
+
+
+@wp.func_native("""return ((int*)base)[i];""")
+def shared_int(base: wp.uint64, i: int) -> int:
+    """The int32 at ``base[i]`` in shared memory."""
+    ...
+
+
+@wp.func_native("""((int*)base)[i] = value;""")
+def set_shared_int(base: wp.uint64, i: int, value: int):
+    """``base[i] = value`` for an int32 in shared memory."""
+    ...
+
+
+@wp.func_native("""
+int* words = (int*)base;
+long long bits;
+memcpy(&bits, &value, sizeof(bits));
+words[i] = (int)bits;
+words[i + stride] = (int)(bits >> 32);
+""")
+def set_shared_float_words(base: wp.uint64, i: int, stride: int, value: wp.float64):
+    """A float64 into the int32 words ``base[i]`` (low half) and ``base[i + stride]`` (high half)
+    in shared memory."""
+    ...
+
+
+@wp.func_native("""
+const int* words = (const int*)base;
+long long bits = ((long long)words[i + stride] << 32) | (unsigned)words[i];
+double value;
+memcpy(&value, &bits, sizeof(value));
+return value;
+""")
+def shared_float_words(base: wp.uint64, i: int, stride: int) -> wp.float64:
+    """The float64 of :func:`set_shared_float_words`."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+__syncwarp();
+#endif
+""")
+def sync_warp():
+    """A warp's barrier (CUDA; nothing on the CPU, where a block is one lane)."""
+    ...
+
+
+@wp.func_native("""return (uint64_t)(((char*)a.data) + (size_t)r * (size_t)a.strides[0]);""")
+def row_address(a: wp.array2d(dtype=wp.float64), r: int) -> wp.uint64:
+    """The address of ``a[r, 0]`` (rows contiguous: the launcher checks)."""
+    ...
+
+
+@wp.func_native("""return ((const double*)base)[i];""")
+def load_float(base: wp.uint64, i: int) -> wp.float64:
+    """``base[i]`` for a float64 in global memory (one address computation less than Warp's
+    strided indexing a load)."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+asm volatile("prefetch.global.L2 [%0];" :: "l"(((const double*)base) + i));
+#endif
+""")
+def prefetch_float(base: wp.uint64, i: int):
+    """Ask the L2 cache for the 128-byte line holding ``base[i]`` (CUDA; nothing on the CPU)."""
+    ...
+
+
+@wp.func_native("""((double*)base)[i] = value;""")
+def store_float(base: wp.uint64, i: int, value: wp.float64):
+    """``base[i] = value`` for a float64 in global memory."""
+    ...
+
+
+@wp.func_native("""((double*)base)[i] = value;""")
+def set_shared_float(base: wp.uint64, i: int, value: wp.float64):
+    """``base[i] = value`` for a float64 in shared memory."""
+    ...
+
+
+@wp.func_native("""return ((double*)base)[i];""")
+def shared_float(base: wp.uint64, i: int) -> wp.float64:
+    """The float64 at ``base[i]`` in shared memory."""
+    ...
+
+
+@wp.func_native("""return ((long long*)base)[i];""")
+def shared_int64(base: wp.uint64, i: int) -> wp.int64:
+    """The int64 at ``base[i]`` in shared memory."""
+    ...
+
+
+@wp.func_native("""((long long*)base)[i] = value;""")
+def set_shared_int64(base: wp.uint64, i: int, value: wp.int64):
+    """``base[i] = value`` for an int64 in shared memory."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+return __shfl_up_sync(0xffffffffu, (long long)value, delta);
+#else
+return value;
+#endif
+""")
+def shuffle_up(value: wp.int64, delta: int) -> wp.int64:
+    """The value of the lane ``delta`` below in the warp (CUDA; every lane of the warp must call)."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+return __shfl_xor_sync(0xffffffffu, (long long)value, mask);
+#else
+return value;
+#endif
+""")
+def shuffle_xor(value: wp.int64, mask: int) -> wp.int64:
+    """The value of lane ``lane ^ mask`` of the warp (CUDA; every lane of the warp must call)."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+return __shfl_xor_sync(0xffffffffu, value, mask);
+#else
+return value;
+#endif
+""")
+def shuffle_xor_float(value: wp.float64, mask: int) -> wp.float64:
+    """The float64 of lane ``lane ^ mask`` of the warp (CUDA; every lane of the warp must call)."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+__syncthreads();
+#else
+WP_TILE_SYNC();
+#endif
+""")
+def sync_block():
+    """A block's barrier (``__syncthreads`` on CUDA, Warp's CPU block barrier otherwise)."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+unsigned long long start, now;
+asm volatile("mov.u64 %0, %%globaltimer;" : "=l"(start));
+do {
+    asm volatile("mov.u64 %0, %%globaltimer;" : "=l"(now));
+} while (now - start < (unsigned long long)nanoseconds);
+#endif
+""")
+def wait_nanoseconds(nanoseconds: wp.int64):
+    """Spin on the GPU's global timer (ns) until ``nanoseconds`` have passed (CUDA; nothing on
+    the CPU)."""
+    ...
+
+
+@wp.kernel(enable_backward=False)
+def hold_stream(nanoseconds: wp.int64):
+    """Launched with one lane: the stream is busy for ``nanoseconds`` (ns)."""
+    wait_nanoseconds(nanoseconds)
