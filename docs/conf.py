@@ -4,13 +4,19 @@ Build (warnings are errors): ``python -m sphinx -W -b html docs docs/_build/html
 MyST Markdown, the API reference is generated from the docstrings (autosummary + numpydoc), the
 CLI reference from the argument parser (sphinx-argparse), and the gallery's examples run during
 the build on CPU-sized inputs (sphinx-gallery). MathJax is copied into the build
-(sphinx-mathjax-offline), so the site reads offline from the build directory.
+(sphinx-mathjax-offline), so the site reads offline from the build directory. Each API entry
+links to its source (sphinx.ext.linkcode, :func:`linkcode_resolve`), names of numpy, scipy, warp
+and dask link to their docs (intersphinx, from the small inventories of docs/_intersphinx/),
+and code blocks have a copy button (sphinx-copybutton).
 Generated sources (docs/generated, docs/auto_examples) are kept between builds: after renaming
 or removing a module or an example, delete them.
 """
 
+import importlib
+import inspect
 import os
 import re
+import subprocess
 import sys
 from pathlib import Path
 
@@ -30,7 +36,10 @@ extensions = [
     "numpydoc",
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
+    "sphinx.ext.intersphinx",
+    "sphinx.ext.linkcode",
     "sphinx.ext.mathjax",
+    "sphinx_copybutton",
     "sphinxarg.ext",
     "sphinx_gallery.gen_gallery",
     "sphinx-mathjax-offline",
@@ -38,7 +47,7 @@ extensions = [
 
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
 # the pages are docs/*.md; Markdown in subfolders is data a page includes or links (docs/inverse/)
-exclude_patterns = ["_build", "_templates", "examples", "*/*.md", "*/**/*.md"]
+exclude_patterns = ["_build", "_templates", "_intersphinx", "examples", "*/*.md", "*/**/*.md"]
 suppress_warnings = ["myst.header"]
 
 # MyST: $...$ and $$...$$ math, \begin{equation} blocks, heading anchors for links
@@ -56,6 +65,54 @@ autodoc_typehints = "none"
 numpydoc_show_class_members = False
 numpydoc_validation_checks = set()
 numpydoc_xref_param_type = False
+
+# Links to other projects' docs. The build runs offline (CI reaches PyPI only) with warnings as
+# errors, so it cannot download their objects.inv: each project's inventory is a small file in
+# docs/_intersphinx/ listing exactly the objects these pages reference, written by
+# docs/_intersphinx/make_inventories.py (add an object there and run it to link a new name).
+_INVENTORIES = Path(__file__).resolve().parent / "_intersphinx"
+intersphinx_mapping = {
+    "numpy": ("https://numpy.org/doc/stable/", str(_INVENTORIES / "numpy.inv")),
+    "scipy": ("https://docs.scipy.org/doc/scipy/", str(_INVENTORIES / "scipy.inv")),
+    "warp": ("https://nvidia.github.io/warp/stable/", str(_INVENTORIES / "warp.inv")),
+    "dask": ("https://docs.dask.org/en/stable/", str(_INVENTORIES / "dask.inv")),
+    "distributed": ("https://distributed.dask.org/en/stable/", str(_INVENTORIES / "distributed.inv")),
+}
+
+# Links from each API entry to its source: MDROLL_SOURCE_URL is the repository's address for
+# browsing files (default below), MDROLL_SOURCE_REF the commit or branch (default: the
+# checkout's commit, or "main" outside a git checkout).
+SOURCE_URL = os.environ.get("MDROLL_SOURCE_URL", "https://github.com/mdroll/mdroll").rstrip("/")
+
+
+def _source_ref() -> str:
+    if "MDROLL_SOURCE_REF" in os.environ:
+        return os.environ["MDROLL_SOURCE_REF"]
+    try:
+        return subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True,
+                              check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "main"
+
+
+SOURCE_REF = _source_ref()
+
+
+def linkcode_resolve(domain, info):
+    """The address of the source lines of a Python object of mdroll, or None (no link)."""
+    if domain != "py" or not info.get("module", "").startswith("mdroll"):
+        return None
+    try:
+        obj = importlib.import_module(info["module"])
+        for part in info["fullname"].split("."):
+            obj = getattr(obj, part)
+        obj = inspect.unwrap(obj)
+        path = Path(inspect.getsourcefile(obj)).resolve().relative_to(ROOT)
+        lines, first = inspect.getsourcelines(obj)
+    except (AttributeError, ImportError, OSError, TypeError, ValueError):
+        return None  # data, a Warp kernel without Python source, or a name defined elsewhere
+    return f"{SOURCE_URL}/blob/{SOURCE_REF}/{path.as_posix()}#L{first}-L{first + len(lines) - 1}"
+
 
 # the gallery: every plot_*.py of docs/examples runs during the build (CPU, seconds each)
 sphinx_gallery_conf = {

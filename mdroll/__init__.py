@@ -1,9 +1,9 @@
 """mdroll: the Method of Dimensionality Reduction for a wheel rolling on a rough rail.
 
-Ensembles of random rough lines (physics.md section 3), the contact force by the registered
-algorithms (:data:`ALGORITHMS`: direct sum, bounding tree, edge-incremental, sweep; section 4)
-as Warp kernels on CPU and CUDA, the wheel's dynamics (section 5) and ensemble-averaged spectra
-(section 6). All units SI.
+Ensembles of random rough lines (physics.md section 3), the contact force by four algorithms
+(:data:`ALGORITHMS`: the exact direct sum, an exact bounding tree, an exact O(n) sweep and the
+edge-incremental approximation; section 4) as Warp kernels on CPU and CUDA, the wheel's dynamics
+(section 5) and ensemble-averaged spectra (section 6). All units SI.
 """
 
 from .devices import DeviceError, available_devices

@@ -1,4 +1,4 @@
-"""Generated inputs for the command line (issue 16): whatever ``--set`` values and TOML files a
+"""Generated inputs for the command line: whatever ``--set`` values and TOML files a
 user writes, ``mdroll`` ends with exit 0 and finite outputs, or exit 2 and one line on stderr;
 never a traceback, a hang or another exit code.
 

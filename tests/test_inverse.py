@@ -1,4 +1,4 @@
-"""The inverse problem (issue 19): readers and their unit conversions, bad input, the Whittle fit
+"""The inverse problem: readers and their unit conversions, bad input, the Whittle fit
 against chi-square periodograms of a known model, a CPU round trip, and `mdroll invert`."""
 
 import json
@@ -130,7 +130,7 @@ def test_lambda_A_matches_physics_on_the_grid():
 # ------------------------------------------------------------------------------------------ round trip
 def test_round_trip_recovers_H_a_qmin_on_cpu():
     """Simulate 8 passes over a periodic L = 0.5 m line (no window: the leak term is fitted), invert
-    with m and R known: H, a and q_min within their stated intervals or the issue's targets, h0
+    with m and R known: H, a and q_min within their stated intervals or docs/inverse.md's targets, h0
     and E* within 10 %."""
     from mdroll.inverse.roundtrip import round_trip
 

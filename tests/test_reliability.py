@@ -1,4 +1,4 @@
-"""Reliability (issue 6): one clear error for every bad input, never silently wrong,
+"""Reliability: one clear error for every bad input, never silently wrong,
 deterministic ensembles, resumable runs after kill -9, bounded memory."""
 
 import inspect
@@ -193,8 +193,8 @@ def test_cpu_and_cuda_give_the_same_spectra(cuda_devices):
 
 
 def test_split_across_processes_and_merged(quick_plots, tmp_path, capsys):
-    """Unequal parts started together without --out (issue 16: they shared the per-second
-    directory, only the last survived, and merge refused the unequal counts): each keeps its own
+    """Unequal parts started together without --out (they must not share a per-second
+    directory, where only the last would survive, and merge must take unequal counts): each keeps its own
     locked directory and the merge is the whole ensemble."""
     common = ["--set", "L=0.05", "--device", "cpu", "--no-progress", "--seed", "4"]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
@@ -268,8 +268,8 @@ def test_thesis_scale_batches_fit_a_24_gib_host():
     assert batch * batching.BYTES_PER_POINT * thesis.n_points <= 12 * 2**30
 
 
-# ============================================================================= issue 16
-# Each case below failed before its fix (a traceback, a hang, a silently wrong or lost result).
+# ============================================================================= failure modes
+# Each case below is a way to fail that the CLI must refuse: a traceback, a hang, a silently wrong or lost result.
 
 @pytest.fixture
 def quick_plots(monkeypatch):

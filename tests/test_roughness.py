@@ -4,7 +4,7 @@ measured profiles, the contact filter and the eq 39 / eq 63 physics (docs/roughn
 import json
 import math
 import os
-from pathlib import Path
+from importlib import resources
 
 import numpy as np
 import pytest
@@ -14,12 +14,12 @@ from mdroll import EnsembleSpec, ParameterError, Params, physics, rough_lines
 from mdroll.cli import main
 from mdroll.ensemble.psd import psd_rows, to_host
 from mdroll.railway import studies
-from mdroll.roughness import bands, filters, measured, models, tables
+from mdroll import roughness
+from mdroll.roughness import bands, filters, measured, tables
 
 SMALL = Params(L=0.2, dx=1e-5)
-# the project's shared data folder: in the checkout, or beside it (worktrees under a common root)
-TSV = next((root / "shared" / "data" / "railway_tables.tsv" for root in Path(__file__).resolve().parents[1:4]
-            if (root / "shared" / "data" / "railway_tables.tsv").is_file()), Path("railway_tables.tsv"))
+#: the railway tables as the package ships them (package data of mdroll.roughness)
+TSV = resources.files("mdroll.roughness").joinpath(tables.TABLE_FILE)
 
 
 def _host(lines):
@@ -31,7 +31,7 @@ def test_default_power_law_table_path_equals_kernel_path(device):
     """The power law through the host amplitude table gives today's lines to rounding."""
     kernel = _host(rough_lines(SMALL, 7, [0, 3, 11], device=device))
     table = _host(rough_lines(SMALL, 7, [0, 3, 11], device=device,
-                              roughness=models.PowerLaw(SMALL.H, SMALL.q_min, SMALL.q_max)))
+                              roughness=roughness.PowerLaw(SMALL.H, SMALL.q_min, SMALL.q_max)))
     assert np.max(np.abs(kernel - table)) <= 1e-12 * SMALL.h0
 
 
@@ -50,12 +50,12 @@ def test_any_model_reproducible_from_seed_and_index(device, cuda_devices):
 def test_line_psd_equals_requested_spectrum(device, name):
     p = SMALL
     spectrum = {
-        "powerlaw": models.PowerLaw(p.H, p.q_min, p.q_max),
-        "rolloff": models.RollOff(p.H, p.q_min, p.q_max, prefactor=p.lambda_A),
-        "iso3095": models.iso3095(),
-        "areal": models.PowerLaw(p.H, p.q_min, p.q_max, kind="areal"),
-        "table": models.Tabulated(np.geomspace(100.0, 2e5, 40), 1e-18 * np.geomspace(1.0, 1e-7, 40)),
-        "callable": models.FromCallable(lambda q: 1e-15 / (1.0 + (q / 3000.0) ** 3), absolute=True),
+        "powerlaw": roughness.PowerLaw(p.H, p.q_min, p.q_max),
+        "rolloff": roughness.RollOff(p.H, p.q_min, p.q_max, prefactor=p.lambda_A),
+        "iso3095": roughness.iso3095(),
+        "areal": roughness.PowerLaw(p.H, p.q_min, p.q_max, kind="areal"),
+        "table": roughness.Tabulated(np.geomspace(100.0, 2e5, 40), 1e-18 * np.geomspace(1.0, 1e-7, 40)),
+        "callable": roughness.FromCallable(lambda q: 1e-15 / (1.0 + (q / 3000.0) ** 3), absolute=True),
     }[name]
     record = studies.line_spectrum_check(p, spectrum, seed=2, n_real=3, device=device)
     assert record["passed"], record
@@ -64,7 +64,7 @@ def test_line_psd_equals_requested_spectrum(device, name):
 
 def test_absolute_level_keeps_the_spectrum_and_rms_level_rescales():
     p = Params(L=1.0, dx=5e-5)
-    iso = models.iso3095()
+    iso = roughness.iso3095()
     absolute = rough_lines(p, 0, 2, roughness=iso)
     expected = math.sqrt(2 * p.dq * np.sum(iso.grid_mdr_psd(p.dq * np.arange(p.n_points // 2 + 1), p.dq)[1:]))
     assert np.sqrt(np.mean(absolute**2, axis=1)) == pytest.approx([expected] * 2, rel=1e-9)
@@ -75,18 +75,18 @@ def test_absolute_level_keeps_the_spectrum_and_rms_level_rescales():
 
 # ---------------------------------------------------------------------------------- models
 def test_rolloff_is_flat_below_q_r_and_eq33_above():
-    m = models.RollOff(0.7, q_r=1000.0, q_max=1e5, prefactor=2.0)
+    m = roughness.RollOff(0.7, q_r=1000.0, q_max=1e5, prefactor=2.0)
     q = np.array([10.0, 500.0, 1000.0, 4000.0, 2e5])
     np.testing.assert_allclose(m.psd(q), [2 * 1000**-2.4, 2 * 1000**-2.4, 2 * 1000**-2.4, 2 * 4000**-2.4, 0.0])
 
 
 def test_tabulated_is_log_log_interpolation():
     q = np.array([10.0, 100.0, 1000.0])
-    t = models.Tabulated(q, 3.0 * q**-2.5, kind="mdr")
+    t = roughness.Tabulated(q, 3.0 * q**-2.5, kind="mdr")
     np.testing.assert_allclose(t.psd([31.6227766, 500.0]), 3.0 * np.array([31.6227766, 500.0]) ** -2.5, rtol=1e-12)
     assert t.psd([5.0, 2000.0]).tolist() == [0.0, 0.0]
     with pytest.raises(ParameterError, match="increase"):
-        models.Tabulated([2.0, 1.0], [1.0, 1.0])
+        roughness.Tabulated([2.0, 1.0], [1.0, 1.0])
 
 
 def test_band_levels_definition_and_iec_edges():
@@ -94,16 +94,18 @@ def test_band_levels_definition_and_iec_edges():
     lo, hi = bands.wavelength_band_edges_q([15])
     assert 2 * math.pi / hi[0] == pytest.approx(10**1.5 * 10**-0.05 * 1e-3, rel=1e-12)
     assert 2 * math.pi / lo[0] == pytest.approx(10**1.5 * 10**0.05 * 1e-3, rel=1e-12)
-    m = models.BandLevels([31.5, 8.0], [6.0, -3.0])
+    m = roughness.BandLevels([31.5, 8.0], [6.0, -3.0])
     for n, level in ((15, 6.0), (9, -3.0)):
         lo, hi = bands.wavelength_band_edges_q([n])
         mean_square = 2 * integrate.quad(lambda q: m.psd(q), lo[0], hi[0], points=[lo[0], hi[0]])[0]
         assert 10 * math.log10(mean_square / 1e-12) == pytest.approx(level, abs=1e-6)
 
 
-def test_reference_tables_match_the_shared_data_file():
-    if not TSV.is_file():
-        pytest.skip("shared/data/railway_tables.tsv not present")
+def test_reference_tables_match_the_shipped_data_file():
+    assert TSV.is_file(), "railway_tables.tsv is not shipped in mdroll.roughness"
+    header = [line for line in TSV.read_text().splitlines() if line.startswith("#")]
+    assert any("2015/996" in line for line in header) and any("ISO 3095" in line for line in header), \
+        "the data file keeps its sources in its header"
     rows = [line.split("\t") for line in TSV.read_text().splitlines() if line and not line.startswith("#")]
     data = np.array([[float(v) for v in row] for row in rows[1:]])
     wavelengths, iso = tables.iso3095_limit()
@@ -112,25 +114,28 @@ def test_reference_tables_match_the_shared_data_file():
     _, a3 = tables.cnossos_a3()
     np.testing.assert_array_equal(a3[(50e3, 0.92)], data[:, 4])
     np.testing.assert_array_equal(a3[(50e3, 0.36)], data[:, 1])
+    # a few entries of the published tables, independent of the file's parsing
+    assert wavelengths.size == 35 and len(a3) == 5 and wavelengths[0] == 2000.0 and wavelengths[-1] == 0.8
+    assert iso[list(wavelengths).index(31.5)] == -5.0 and a3[(100e3, 0.92)][list(wavelengths).index(8.0)] == -20.7
 
 
 def test_areal_conversions_geike_and_across_the_track():
     H, A = 0.7, 1e-20
-    areal = models.FromCallable(lambda q: A * q ** (-2 * H - 2), kind="areal")
+    areal = roughness.FromCallable(lambda q: A * q ** (-2 * H - 2), kind="areal")
     q = np.array([1e3, 1e4])
     profile = areal.profile_psd(q)
     closed = A * q ** (-2 * H - 1) * math.sqrt(math.pi) * special.gamma(H + 0.5) / special.gamma(H + 1)
     np.testing.assert_allclose(profile, closed, rtol=1e-6)
-    np.testing.assert_allclose(areal.mdr_psd(q) / profile, models.mdr_to_profile_ratio(H), rtol=1e-6)
-    assert models.mdr_to_profile_ratio(H) == pytest.approx(1.7538, abs=1e-3)
+    np.testing.assert_allclose(areal.mdr_psd(q) / profile, roughness.mdr_to_profile_ratio(H), rtol=1e-6)
+    assert roughness.mdr_to_profile_ratio(H) == pytest.approx(1.7538, abs=1e-3)
     # lambda = pi: the MDR line has the surface's RMS, 2 int C_1D dq = 2 pi int q C_2D dq
-    band = models.PowerLaw(H, 1e3, 1e5, prefactor=A, kind="areal")
+    band = roughness.PowerLaw(H, 1e3, 1e5, prefactor=A, kind="areal")
     surface = 2 * math.pi * integrate.quad(lambda x: x * band.psd(x), 1e3, 1e5, limit=200)[0]
     assert band.mean_square() == pytest.approx(surface, rel=1e-4)
 
 
 def test_profile_kind_is_the_mdr_line_under_the_rail_assumption():
-    m = models.BandLevels([10.0], [0.0], kind="profile")
+    m = roughness.BandLevels([10.0], [0.0], kind="profile")
     q = np.array([2 * math.pi / 0.01])
     assert m.mdr_psd(q) == m.profile_psd(q) == m.psd(q)
 
@@ -168,7 +173,7 @@ def test_welch_recovers_white_noise_level_and_dof():
 
 def test_measured_profile_path_recovers_a_known_spectrum():
     p = Params(L=1.0, dx=5e-5)
-    spectrum = models.RollOff(p.H, 500.0, p.q_max, prefactor=p.lambda_A)
+    spectrum = roughness.RollOff(p.H, 500.0, p.q_max, prefactor=p.lambda_A)
     record = studies.measured_profile_check(p, spectrum, length=4.0, seed=3, segment_length=0.25)
     assert record["passed"], record
     assert 0.9 <= record["coverage_95"] <= 0.99
@@ -239,11 +244,11 @@ def test_run_writes_band_outputs(tmp_path):
 
 
 def test_spec_carries_a_model():
-    spec = EnsembleSpec(SMALL, realizations=2, roughness=models.RollOff(0.7, 800.0, 1e5, prefactor=1e-20))
+    spec = EnsembleSpec(SMALL, realizations=2, roughness=roughness.RollOff(0.7, 800.0, 1e5, prefactor=1e-20))
     back = EnsembleSpec.from_dict(json.loads(json.dumps(spec.as_dict())))
     assert back.roughness.describe() == spec.roughness.describe() and back.key() == spec.key()
     with pytest.raises(ParameterError, match="callable"):
-        EnsembleSpec.from_dict(EnsembleSpec(SMALL, roughness=models.FromCallable(np.ones_like)).as_dict())
+        EnsembleSpec.from_dict(EnsembleSpec(SMALL, roughness=roughness.FromCallable(np.ones_like)).as_dict())
 
 
 # ---------------------------------------------------------------------------------- contact filter and physics
@@ -266,14 +271,14 @@ def test_mdr_contact_filter_closed_form():
 def test_eq39_for_any_model_is_eq40_for_the_power_law():
     p = SMALL
     q = p.dq * np.arange(p.n_points // 2 + 1)
-    general = models.linear_force_psd(p, models.from_params(p))
+    general = roughness.linear_force_psd(p, roughness.from_params(p))
     np.testing.assert_allclose(general, physics.force_psd_high_band(q, p.lambda_A, p.H, p.q_min, p.q_max, p.E_star, p.a),
                                rtol=1e-12, atol=0)
 
 
 def test_eq39_high_band_for_a_rolloff_spectrum(device):
     p = Params(L=0.2, dx=1e-5)
-    record = studies.high_band_check(p, models.RollOff(p.H, p.q_min, p.q_max), p.q_min, seed=1, n_real=3, device=device)
+    record = studies.high_band_check(p, roughness.RollOff(p.H, p.q_min, p.q_max), p.q_min, seed=1, n_real=3, device=device)
     assert record["passed"], record
 
 

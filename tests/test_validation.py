@@ -1,5 +1,5 @@
 """The validation layer: the check API's comparisons on synthetic spectra, the ensemble source on
-every device against NumPy references, issue 15's mends, and ``mdroll validate --quick`` end to
+every device against NumPy references, the checks' exactness and constants, and ``mdroll validate --quick`` end to
 end (physics.md section 7)."""
 
 import json
@@ -133,7 +133,7 @@ class _Differences:
 
 
 def test_exactness_check_predicts_zero_within_1e12(monkeypatch):
-    # issue 15: with predicted = tolerance = 1e-12, 1.5e-12 F_N passed; the check states max |dF| <= 1e-12 F_N
+    # the check states max |dF| <= 1e-12 F_N: 1.5e-12 F_N must fail, not pass as predicted +- tolerance would
     results = check_exact_algorithms(Context(SIZES["quick"], 0, _Differences(1.5e-12)))
     assert results and all(r.predicted == 0.0 and r.tolerance == 1e-12 and not r.passed for r in results)
     assert all(r.passed for r in check_exact_algorithms(Context(SIZES["quick"], 0, _Differences(1e-12))))
@@ -147,7 +147,7 @@ def test_exactness_check_predicts_zero_within_1e12(monkeypatch):
 
 
 def test_validation_constants_come_from_physics():
-    # issue 15: no literal pi/a or 0.277 left in the validation layer (physics.modulation_period, THESIS_HURST_OFFSET)
+    # no literal pi/a or 0.277 in the validation layer (physics.modulation_period, THESIS_HURST_OFFSET)
     for path in (ROOT / "mdroll" / "validation").glob("*.py"):
         text = path.read_text()
         assert not re.search(r"math\.pi\s*/\s*\w+\.a\b", text) and "0.277" not in text, path

@@ -74,9 +74,9 @@ def rough_lines(params: Params, seed: int, realizations, device: str = "cpu", ro
 
     Any other spectrum (``params.roughness`` other than "powerlaw", or a ``roughness`` model of
     :mod:`mdroll.roughness`) replaces C_1D: its amplitudes ``B(q_k)`` on the grid are computed once
-    per call on the host (:func:`mdroll.roughness.models.mode_amplitude_table`) and uploaded; the
+    per call on the host (:func:`mdroll.roughness.line_grid.mode_amplitude_table`) and uploaded; the
     phases are the same hashes, so lines stay reproducible from (seed, index). With the "rms" level
-    (:func:`mdroll.roughness.models.resolve_level`) each line is scaled to RMS h0 as above; with
+    (:func:`mdroll.roughness.line_grid.resolve_level`) each line is scaled to RMS h0 as above; with
     "absolute" it keeps the spectrum's level (its expected mean square ``2 dq sum_k C(q_k)``).
 
     Parameters
@@ -88,7 +88,7 @@ def rough_lines(params: Params, seed: int, realizations, device: str = "cpu", ro
         ``R`` for indices 0..R-1, or the realization indices themselves.
     device : str
         ``"cpu"``, ``"cuda"``, ``"cuda:N"`` or ``"auto"``.
-    roughness : mdroll.roughness.models.RoughnessSpectrum, optional
+    roughness : mdroll.roughness.kinds.RoughnessSpectrum, optional
         A spectrum instead of the one the roughness fields of ``params`` name (any model, a
         callable included).
 
@@ -106,7 +106,7 @@ def random_spectra(params: Params, seed: int, realizations, device: str, roughne
     real FFTs (:func:`mdroll.fft.irfft_rows`) are the lines of :func:`rough_lines`,
     already scaled to RMS h0 (or at their absolute level)."""
     from ..kernels.lines import line_scales, random_phase_spans, random_phase_spectrum
-    from ..roughness.models import from_params, mode_amplitude_table, resolve_level
+    from ..roughness.line_grid import from_params, mode_amplitude_table, resolve_level
 
     wp = warp()
     seed = check_seed(seed)

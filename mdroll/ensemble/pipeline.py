@@ -31,7 +31,7 @@ from .batching import check_batch_fits, check_run_fits, default_batch
 from .checkpoint import RunTotals
 from .coupled import coupled_series
 from .lines import check_seed, realization_indices, rough_lines
-from ..roughness.models import from_params, line_rms
+from ..roughness.line_grid import from_params, line_rms
 from .result import EnsembleResult
 from .psd import psd_moments_of_batch, series_sums, to_host
 

@@ -36,7 +36,7 @@ class EnsembleSpec:
         As for :func:`mdroll.run_ensemble`; the algorithm by default the registry's for the mode.
     window : bool
         Hann window on the force and acceleration series before their PSDs.
-    roughness : mdroll.roughness.models.RoughnessSpectrum or None
+    roughness : mdroll.roughness.kinds.RoughnessSpectrum or None
         A spectrum instead of the one the roughness fields of ``params`` name (None: those).
         Serialized by its description; a callable spectrum cannot be read back.
     integrator : str
@@ -88,7 +88,7 @@ class EnsembleSpec:
 
     @classmethod
     def from_dict(cls, data: dict) -> "EnsembleSpec":
-        from ..roughness.models import from_description
+        from ..roughness.line_grid import from_description
 
         data = dict(data)
         roughness = data.pop("roughness", None)

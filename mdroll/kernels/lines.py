@@ -79,7 +79,7 @@ def line_scales(
     ``sum_of_squares[0] = sum_k a_k^2`` over the whole half spectrum. Only the Nyquist mode
     (``nyquist`` = n/2 when the line has one, else -1) is real, so only its share depends on
     the phase. With ``absolute`` nonzero the amplitudes are already the physical ``B(q_k)`` of an
-    absolute spectrum (``mdroll.roughness.models.mode_amplitude_table``) and every scale is 1.
+    absolute spectrum (``mdroll.roughness.line_grid.mode_amplitude_table``) and every scale is 1.
     Also writes each row's generator key (:func:`realization_key`), so that
     :func:`random_phase_spectrum` hashes once per mode, not twice."""
     r = wp.tid()

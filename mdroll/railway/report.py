@@ -15,20 +15,21 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import roughness
 from ..experiments import Figure, write_figure
 from ..files import atomic_write
 from ..params import Params
-from ..roughness import bands, models
+from ..roughness import bands
 
 
 def band_spectra(result, spectrum=None) -> dict:
     """The band spectra of an ensemble result (``result.q``, ``force_psd``, ``accel_psd``,
     ``params``) with the roughness of ``spectrum`` (default: the one ``result.params`` names, as
-    generated: :func:`models.grid_psd`). JSON-ready: per band its nominal label, exact centre,
+    generated: :func:`mdroll.roughness.grid_psd`). JSON-ready: per band its nominal label, exact centre,
     the other axis at v0, level (dB; NaN where the band holds no bin) and bin count."""
     p: Params = result.params
-    spectrum = models.from_params(p) if spectrum is None else spectrum
-    grid = models.grid_psd(p, spectrum)
+    spectrum = roughness.from_params(p) if spectrum is None else spectrum
+    grid = roughness.grid_psd(p, spectrum)
     q_line = p.dq * np.arange(grid.size)
     top = float(np.max(q_line[grid > 0]))
     n_wave = bands.wavelength_bands_of_grid(p.dq, top)

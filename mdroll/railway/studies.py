@@ -16,14 +16,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import physics
-from ..forces.force import contact_force
+from .. import physics, roughness
 from ..ensemble.lines import rough_lines
-from ..ensemble.spec import EnsembleSpec, run_specs
 from ..ensemble.psd import psd_rows, to_host
+from ..ensemble.spec import EnsembleSpec, run_specs
 from ..experiments import Ladder, Registry, provenance
+from ..forces.force import contact_force
 from ..params import Params
-from ..roughness import bands, filters, measured, models
+from ..roughness import bands, filters, measured, tables
 
 #: Standard errors added to each model allowance (as mdroll.validation.checks).
 Z_SIGMA = 3.0
@@ -60,7 +60,7 @@ def _host(array) -> np.ndarray:
 
 
 def line_spectrum_check(params: Params, spectrum, seed: int = 0, n_real: int = 4, device: str = "cpu") -> dict:
-    """The ensemble PSD of generated lines against the requested C_1D(q_k) (:func:`models.grid_psd`).
+    """The ensemble PSD of generated lines against the requested C_1D(q_k) (:func:`mdroll.roughness.grid_psd`).
 
     Lines have fixed amplitudes and random phases (eq 16-17), so each line's periodogram on its
     own grid equals the requested spectrum up to the RMS scaling (which varies with the phase of
@@ -68,7 +68,7 @@ def line_spectrum_check(params: Params, spectrum, seed: int = 0, n_real: int = 4
     mode's share of the mean square and 1e-9 (rounding) of the largest bin."""
     lines = rough_lines(params, seed, n_real, device=device, roughness=spectrum)
     psd = _host(psd_rows(lines, params.dx, device))
-    expected = models.grid_psd(params, spectrum)
+    expected = roughness.grid_psd(params, spectrum)
     mean, stderr = psd.mean(axis=0), psd.std(axis=0, ddof=1) / math.sqrt(n_real)
     scale = float(np.max(expected))
     deviation = float(np.max(np.abs(mean - expected)) / scale)
@@ -78,15 +78,15 @@ def line_spectrum_check(params: Params, spectrum, seed: int = 0, n_real: int = 4
     rms = float(np.sqrt(np.mean(_host(lines) ** 2, axis=1)).mean())
     return {"model": spectrum.describe().get("model"), "max_relative_deviation": deviation,
             "max_relative_stderr": float(np.max(stderr) / scale), "line_rms_m": rms,
-            "expected_rms_m": models.line_rms(params, spectrum), "passed": bool(np.all(within))}
+            "expected_rms_m": roughness.line_rms(params, spectrum), "passed": bool(np.all(within))}
 
 
 def db_round_trip(params: Params, wavelengths_mm, levels_db, seed: int = 0, n_real: int = 4,
                   device: str = "cpu") -> dict:
-    """dB table -> PSD (:class:`models.BandLevels`) -> lines -> 1/3-octave levels
+    """dB table -> PSD (:class:`mdroll.roughness.BandLevels`) -> lines -> 1/3-octave levels
     (:func:`bands.roughness_levels` of the lines' mean periodogram), per band that holds a bin of
     the line's grid; passes within :data:`ROUND_TRIP_DB` per band."""
-    spectrum = models.BandLevels(wavelengths_mm, levels_db, kind="profile", source="round trip")
+    spectrum = roughness.BandLevels(wavelengths_mm, levels_db, kind="profile", source="round trip")
     lines = rough_lines(params, seed, n_real, device=device, roughness=spectrum)
     psd = _host(psd_rows(lines, params.dx, device)).mean(axis=0)
     q = params.dq * np.arange(psd.size)
@@ -136,13 +136,13 @@ def _modulation_band_ratio(q, measured_psd, stderr, predicted, q_lo, q_hi, a) ->
 
 def high_band_check(params: Params, spectrum, q_lo: float, seed: int = 0, n_real: int = 8, device: str = "cpu",
                     allowance: float = 0.03) -> dict:
-    """Eq 39 with the model's C_1D (:func:`mdroll.roughness.models.linear_force_psd`) against the exact force
+    """Eq 39 with the model's C_1D (:func:`mdroll.roughness.line_grid.linear_force_psd`) against the exact force
     PSD (periodic, decoupled) on whole modulation periods of [q_lo, 8 q_lo]: the generalization
     of the eq 40 check (physics.md section 7: within about 1 % up to 24 q_min for the power law);
     passes within ``allowance`` + Z_SIGMA standard errors."""
     spec = EnsembleSpec(params, seed=seed, realizations=n_real, boundary="periodic", roughness=spectrum)
     result = run_specs([spec], device=device)[0]
-    predicted = models.linear_force_psd(params, spectrum)[: result.q.size]
+    predicted = roughness.linear_force_psd(params, spectrum)[: result.q.size]
     ratio, stderr = _modulation_band_ratio(result.q, result.force_psd, result.force_psd_stderr, predicted,
                                            q_lo, 8 * q_lo, params.a)
     return {"model": spectrum.describe().get("model"), "band": [q_lo, 8 * q_lo], "ratio": ratio, "stderr": stderr,
@@ -159,7 +159,7 @@ def eq63_study(params: Params, seed: int = 0, n_real: int = 16, device: str = "c
 
     Roll-off case: the power law of ``params`` (lambda A of eq 50 from h0 on [q_min, q_max]) with a
     hard cut-off (its low band is non-linear only: the plateau of eq 58) and the same law rolled
-    off flat below q_r = q_min down to 2 pi / L (:class:`models.RollOff`). ISO case: the EN ISO
+    off flat below q_r = q_min down to 2 pi / L (:class:`mdroll.roughness.RollOff`). ISO case: the EN ISO
     3095 limit (absolute), and its part shorter than 2 pi / q_min. Ratio = mean low-band force
     PSD (2 dq .. q_min / 8) of the short-wave part over that of the whole spectrum, against eq 63
     (thesis normalization), the project's closed form (physics.md section 7 low band over eq 39),
@@ -167,10 +167,10 @@ def eq63_study(params: Params, seed: int = 0, n_real: int = 16, device: str = "c
     p = params
     lam_a = p.lambda_A
     top = p.q_min / 8.0  # q a <= pi / 4: sinc^2 >= 0.81, near the q -> 0 limits of eq 58, 62, 63
-    hard = models.PowerLaw(p.H, p.q_min, p.q_max, prefactor=lam_a)
-    rolled = models.RollOff(p.H, p.q_min, p.q_max, prefactor=lam_a)
-    iso = models.iso3095()
-    iso_short = models.BandLimited(iso, p.q_min)
+    hard = roughness.PowerLaw(p.H, p.q_min, p.q_max, prefactor=lam_a)
+    rolled = roughness.RollOff(p.H, p.q_min, p.q_max, prefactor=lam_a)
+    iso = roughness.iso3095()
+    iso_short = roughness.BandLimited(iso, p.q_min)
     cases = [hard, rolled, iso_short, iso]
     specs = [EnsembleSpec(p, seed=seed, realizations=n_real, boundary="periodic", roughness=s) for s in cases]
     results = run_specs(specs, device=device)
@@ -181,11 +181,11 @@ def eq63_study(params: Params, seed: int = 0, n_real: int = 16, device: str = "c
     c = physics.edge_coefficient(p.E_star, p.R, p.a)
 
     def predicted_nonlinear(spectrum):
-        grid = models.grid_psd(p, spectrum)
+        grid = roughness.grid_psd(p, spectrum)
         return float(np.mean(physics.force_psd_low_band(q[band], grid, p.dq, p.E_star, p.R, p.a)))
 
     def predicted_linear(spectrum):
-        return float(np.mean(models.linear_force_psd(p, spectrum)[: q.size][band]))
+        return float(np.mean(roughness.linear_force_psd(p, spectrum)[: q.size][band]))
 
     eq62 = 4.0 * lam_a * p.E_star**2 * p.a**2 * p.q_min ** (-2.0 * p.H - 1.0)
     eq63 = 1.3 * (physics.THESIS_HURST_OFFSET + p.H) ** 2 / (4.0 * p.H) * (p.h0 / p.d0) ** 2
@@ -206,7 +206,7 @@ def eq63_study(params: Params, seed: int = 0, n_real: int = 16, device: str = "c
         "measured_ratio": low[2] / low[3],
         "measured_ratio_rel_stderr": math.hypot(low_err[2] / low[2], low_err[3] / low[3]),
         "closed_form_band": iso_nonlinear / iso_linear,
-        "short_wave_rms_m": models.line_rms(p, iso_short), "rms_m": models.line_rms(p, iso),
+        "short_wave_rms_m": roughness.line_rms(p, iso_short), "rms_m": roughness.line_rms(p, iso),
         "nonlinear_low_band_N2m": low[2], "nonlinear_predicted_N2m": iso_nonlinear,
         "total_low_band_N2m": low[3], "eq39_N2m": iso_linear,
     }
@@ -221,10 +221,10 @@ def dynamics_study(params: Params, speeds=(10.0, 20.0, 30.0, 40.0), seed: int = 
     acceleration's 1/3-octave levels (dB re 1e-6 m/s^2). The decoupled mode counts as valid when
     no contact is lost and every band that holds at least 3 bins agrees within
     :data:`DECOUPLED_DB`. Same lines in both modes (same seed)."""
-    wavelengths, iso_db = models.tables.iso3095_limit()
+    wavelengths, iso_db = tables.iso3095_limit()
     out = []
     for offset, v0 in ((o, v) for o in offsets_db for v in speeds):
-        iso = models.BandLevels(wavelengths, iso_db + offset, kind="profile", source=f"ISO 3095 limit {offset:+g} dB")
+        iso = roughness.BandLevels(wavelengths, iso_db + offset, kind="profile", source=f"ISO 3095 limit {offset:+g} dB")
         p = params.replace(v0=float(v0))
         specs = [EnsembleSpec(p, seed=seed, realizations=n_real, algorithm=algorithm, mode=mode, boundary="periodic",
                               roughness=iso) for mode in ("decoupled", "coupled")]
@@ -237,7 +237,7 @@ def dynamics_study(params: Params, speeds=(10.0, 20.0, 30.0, 40.0), seed: int = 
         steps = coupled.steps * coupled.n_real
         worst = int(np.argmax(np.abs(difference)))
         lost = coupled.contact_lost_steps / steps
-        out.append({"offset_dB": offset, "line_rms_m": models.line_rms(p, iso), "v0": v0, "contact_lost_fraction": lost, "force_rms_coupled_N": coupled.force_rms,
+        out.append({"offset_dB": offset, "line_rms_m": roughness.line_rms(p, iso), "v0": v0, "contact_lost_fraction": lost, "force_rms_coupled_N": coupled.force_rms,
                     "force_rms_decoupled_N": decoupled.force_rms, "frequency_Hz": f.tolist(),
                     "accel_level_decoupled_dB": levels[0][0][ok].tolist(), "accel_level_coupled_dB": levels[1][0][ok].tolist(),
                     "difference_dB": difference.tolist(), "max_abs_difference_dB": float(abs(difference[worst])),
@@ -252,16 +252,16 @@ def contact_filter_study(params: Params, seed: int = 0, n_real: int = 8, device:
     ``L_F - L_r - 20 lg(k_c r0 / F0)`` per wavelength band (force and roughness band-integrated
     over the same wavenumbers), beside eq 39 on the same grid bins and the closed band form of
     :func:`filters.mdr_contact_filter`; and the comparison with CNOSSOS-EU A3."""
-    iso = models.iso3095()
+    iso = roughness.iso3095()
     result = run_specs([EnsembleSpec(params, seed=seed, realizations=n_real, boundary="periodic", roughness=iso)],
                        device=device)[0]
-    grid = models.grid_psd(params, iso)
+    grid = roughness.grid_psd(params, iso)
     q = result.q
     n = bands.wavelength_bands_of_grid(params.dq, params.q_max)
     n = n[np.isin(n, iso.n)]
     ms_r, counts = bands.band_mean_squares(q, grid, params.dq, *bands.wavelength_band_edges_q(n))
     ms_f, _ = bands.band_mean_squares(q, result.force_psd, params.dq, *bands.wavelength_band_edges_q(n))
-    linear = models.linear_force_psd(params, iso)[: q.size]
+    linear = roughness.linear_force_psd(params, iso)[: q.size]
     ms_lin, _ = bands.band_mean_squares(q, linear, params.dq, *bands.wavelength_band_edges_q(n))
     k_c_db = 20.0 * math.log10(params.k_contact * bands.REFERENCES["roughness"] / bands.REFERENCES["force"])
     roughness_db = bands.level_db(ms_r, bands.REFERENCES["roughness"])
@@ -292,10 +292,11 @@ ROUND_TRIP_TABLE = ((1000.0, 500.0, 200.0, 100.0, 50.0, 20.0, 10.0, 5.0, 2.0, 1.
 
 def _lines(s: RailwaySize, seed: int, device: str) -> list:
     p = s.base
-    line_models = (models.PowerLaw(p.H, p.q_min, p.q_max), models.RollOff(p.H, p.q_min, p.q_max), models.iso3095(),
-                   models.PowerLaw(p.H, p.q_min, p.q_max, kind="areal"),
-                   models.Tabulated(np.geomspace(p.q_min / 4, p.q_max, 50), 1e-20 * np.geomspace(1, 1e-6, 50)),
-                   models.FromCallable(lambda q: 1e-14 / (1.0 + (q / 2000.0) ** 3), absolute=True))
+    line_models = (roughness.PowerLaw(p.H, p.q_min, p.q_max), roughness.RollOff(p.H, p.q_min, p.q_max),
+                   roughness.iso3095(),
+                   roughness.PowerLaw(p.H, p.q_min, p.q_max, kind="areal"),
+                   roughness.Tabulated(np.geomspace(p.q_min / 4, p.q_max, 50), 1e-20 * np.geomspace(1, 1e-6, 50)),
+                   roughness.FromCallable(lambda q: 1e-14 / (1.0 + (q / 2000.0) ** 3), absolute=True))
     return [line_spectrum_check(p, m, seed, 4, device) for m in line_models]
 
 
@@ -306,14 +307,14 @@ def _round_trip(s: RailwaySize, seed: int, device: str) -> dict:
 
 def _measured_profile(s: RailwaySize, seed: int, device: str) -> dict:
     p = s.base
-    return measured_profile_check(p.replace(dx=5e-5), models.RollOff(p.H, 2 * p.q_min / 5, p.q_max, prefactor=p.lambda_A),
-                                  s.profile_length, seed, 0.25)
+    spectrum = roughness.RollOff(p.H, 2 * p.q_min / 5, p.q_max, prefactor=p.lambda_A)
+    return measured_profile_check(p.replace(dx=5e-5), spectrum, s.profile_length, seed, 0.25)
 
 
 def _high_band(s: RailwaySize, seed: int, device: str) -> list:
     p = s.base
-    return [high_band_check(p, models.PowerLaw(p.H, p.q_min, p.q_max), p.q_min, seed, s.n_real, device),
-            high_band_check(p, models.RollOff(p.H, p.q_min, p.q_max), p.q_min, seed, s.n_real, device)]
+    return [high_band_check(p, roughness.PowerLaw(p.H, p.q_min, p.q_max), p.q_min, seed, s.n_real, device),
+            high_band_check(p, roughness.RollOff(p.H, p.q_min, p.q_max), p.q_min, seed, s.n_real, device)]
 
 
 #: The studies of :func:`run_all` by name (``mdroll roughness check --only NAME``), each a function

@@ -2,13 +2,13 @@
 
 Eq 39 for any spectrum (:func:`mdroll.physics.force_psd_linear`): the linear force of the MDR
 line is ``C_F(q) = k_c^2 sinc^2(q a) C_1D(q)`` with ``k_c = 2 E* a``, ``sinc(x) = sin(x) / x``. Referred
-to the profile roughness (the rail assumption, :mod:`mdroll.roughness.models`: ``C_1D = C_p``)
+to the profile roughness (the rail assumption, :mod:`mdroll.roughness.kinds`: ``C_1D = C_p``)
 and normalized by the quasi-static stiffness k_c, the contact filter of band b is
 
     A_MDR(b) = 10 lg( integral_b sinc^2(q a) C_p(q) dq / integral_b C_p(q) dq )   (dB)
 
 so that the force level is ``L_F = L_r + A_MDR + 20 lg(k_c r0 / F0)`` (r0 = 1 um, F0 = 1 N). With
-C_p constant across a band (the band-level PSD of :class:`~mdroll.roughness.models.BandLevels`)
+C_p constant across a band (the band-level PSD of :class:`~mdroll.roughness.tabulated.BandLevels`)
 the integral is closed: ``integral sin^2(x)/x^2 dx = Si(2x) - sin^2(x)/x``. CNOSSOS-EU adds its
 A3 to the roughness level the same way (effective roughness), so the two compare band by band.
 """
@@ -33,7 +33,7 @@ def _sinc2_antiderivative(x):
 def mdr_contact_filter(n, a: float, spectrum=None, points: int = 2001) -> np.ndarray:
     """A_MDR (dB) of wavelength bands n (centre 10^(n/10) mm) for contact radius a (m): the band
     average of ``sinc^2(q a)`` weighted by the profile PSD of ``spectrum`` (a
-    :class:`~mdroll.roughness.models.RoughnessSpectrum`; None: constant across each band, closed
+    :class:`~mdroll.roughness.kinds.RoughnessSpectrum`; None: constant across each band, closed
     form), module docstring."""
     q_lo, q_hi = wavelength_band_edges_q(n)
     if spectrum is None:

@@ -2,7 +2,7 @@
 the profile as a line of the MDR model.
 
 A measured profile is a line scan along the rail (kind "profile"); by the rail assumption of
-:mod:`mdroll.roughness.models` its spectrum is also the MDR line's.
+:mod:`mdroll.roughness.kinds` its spectrum is also the MDR line's.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from scipy import signal, stats
 
 from .. import physics
 from ..params import ParameterError, Params
-from .models import Tabulated, read_two_columns
+from .tabulated import Tabulated, read_two_columns
 
 
 @dataclass(frozen=True)

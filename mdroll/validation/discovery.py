@@ -37,6 +37,8 @@ import dataclasses
 import importlib
 import math
 import inspect
+import os
+import sys
 from importlib.metadata import entry_points
 
 from ..ensemble.spec import EnsembleSpec
@@ -54,13 +56,28 @@ CHECK_KEYS = {"name", "prediction", "comparison", "band", "band_unit", "whole_pe
 SPEC_KEYS = {f.name for f in dataclasses.fields(EnsembleSpec)} - {"roughness"}
 
 
+def _import_from_working_directory(module_name: str):
+    """Import ``module_name`` as ``python -m`` finds modules: the working directory first on the
+    path (for the import only), so that a package in the current folder needs no installing."""
+    here = os.getcwd()
+    added = here not in sys.path and "" not in sys.path
+    if added:
+        sys.path.insert(0, here)
+    try:
+        return importlib.import_module(module_name)
+    finally:
+        if added:
+            sys.path.remove(here)
+
+
 def load_object(target: str):
-    """The object named by ``"package.module:attribute"``, or a ParameterError naming it."""
+    """The object named by ``"package.module:attribute"`` (looked up in the working directory
+    first, as ``python -m`` does, then among the installed packages), or a ParameterError."""
     module_name, sep, attribute = target.partition(":")
     if not sep or not module_name or not attribute:
         raise ParameterError(f"check {target!r} is not of the form package.module:function")
     try:
-        obj = importlib.import_module(module_name)
+        obj = _import_from_working_directory(module_name)
     except ImportError as exc:
         raise ParameterError(f"check {target!r}: cannot import {module_name!r} ({exc})") from None
     for part in attribute.split("."):
