@@ -508,8 +508,7 @@ def cmd_merge(args) -> int:
 def cmd_validate(args) -> int:
     import time
 
-    from .devices import resolve_device
-    from .provenance import environment
+    from .experiments import provenance
     from .validation import EnsembleCache, SIZES, run_checks, select
     from .validation.report import format_table, write_junit, write_report
 
@@ -523,8 +522,7 @@ def cmd_validate(args) -> int:
     with cluster_runner(args) as (runner, device):
         results = run_checks(size, seed=args.seed, device=device, progress=not args.no_progress, providers=providers,
                              runner=runner, cache=cache)
-    meta = {"size": size, "seed": args.seed, "base_params": SIZES[size].base.as_dict(),
-            "coupled_params": SIZES[size].coupled.as_dict(), **environment(resolve_device(device))}
+    meta = provenance(device, size, args.seed, SIZES.rung(size))
     if cache is not None:
         meta["cache"] = {"dir": str(cache.directory), "hits": cache.hits, "misses": cache.misses}
     write_report(results, out, meta)
@@ -546,11 +544,12 @@ def _check_file_path(path: Path, option: str) -> None:
 
 def cmd_bench(args) -> int:
     from .bench import format_table, plot_study, run_study
+    from .experiments import write_json
 
     out = _output_dir(args)
     say = (lambda text: None) if args.no_progress else (lambda text: print(text, file=sys.stderr, flush=True))
     record = run_study(args.size or "quick", devices=args.device, progress=say)
-    (out / "bench.json").write_text(json.dumps(record, indent=2))
+    write_json(out / "bench.json", record, indent=2)
     plot_study(record, out / "bench.png")
     print(format_table(record))
     print(f"wrote {out}/: bench.json bench.png")
@@ -585,11 +584,11 @@ def cmd_roughness(args) -> int:
 
     if args.task == "check":
         from .devices import resolve_device
-        from .railway.studies import STUDIES
+        from .railway.studies import RAILWAY_STUDIES
 
-        unknown = sorted(set(args.only or ()) - set(STUDIES))
+        unknown = RAILWAY_STUDIES.unknown(args.only or ())
         if unknown:
-            raise UsageError(f"--only: unknown study(ies) {unknown}; valid ones are: {', '.join(STUDIES)}")
+            raise UsageError(f"--only: unknown study(ies) {unknown}; valid ones are: {', '.join(RAILWAY_STUDIES)}")
         device = resolve_device(args.device)
         passed = cli_tasks.check(args.size or "quick", args.seed, device, _output_dir(args), args.only)
         return 0 if passed else 1
@@ -695,7 +694,7 @@ def cmd_invert(args) -> int:
     from .inverse import fit, read_spectrum
 
     if args.report:
-        from .inverse.roundtrip import merge_records, report
+        from .inverse.roundtrip_report import merge_records, report
 
         records = []
         for name in args.report:
@@ -706,7 +705,9 @@ def cmd_invert(args) -> int:
         print(report(merge_records(records)))
         return 0
     if args.round_trip:
-        from .inverse.roundtrip import format_table, plot_study, run_study
+        from .experiments import write_json
+        from .inverse.roundtrip import run_study
+        from .inverse.roundtrip_report import format_table, plot_study
 
         if args.spectrum:
             raise UsageError("--round-trip simulates its own spectra: give no SPECTRUM")
@@ -726,8 +727,7 @@ def cmd_invert(args) -> int:
             written.insert(1, "roundtrip.png")
         with atomic_write(out / "roundtrip.md", "w") as file:
             file.write(format_table(record) + "\n")
-        with atomic_write(out / "roundtrip.json", "w") as file:
-            json.dump(record, file, indent=1)
+        write_json(out / "roundtrip.json", record)
         print(format_table(record))
         print(f"{record['seconds']:.0f} s; wrote {out}/: {' '.join(written)}")
         return 0

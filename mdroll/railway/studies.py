@@ -1,7 +1,7 @@
 """Physics checks of the roughness models by ensembles (above the ensemble layer).
 
 Each function returns a JSON-ready dict of measured and predicted numbers with a ``passed`` flag
-where there is a pass criterion; :data:`STUDIES` registers them bound to a rung of the ladder
+where there is a pass criterion; :data:`RAILWAY_STUDIES` registers them bound to a rung of the ladder
 (:data:`SIZES`: "quick", small lines for a CPU; "full", thesis-scale ensembles for a GPU) and :func:`run_all` runs them
 for ``mdroll roughness check``.
 
@@ -319,7 +319,7 @@ def _high_band(s: RailwaySize, seed: int, device: str) -> list:
 
 #: The studies of :func:`run_all` by name (``mdroll roughness check --only NAME``), each a function
 #: of the rung (:class:`RailwaySize`), the seed and the device.
-STUDIES = Registry("railway study", [
+RAILWAY_STUDIES = Registry("railway study", [
     ("lines", _lines),
     ("round_trip", _round_trip),
     ("measured_profile", _measured_profile),
@@ -331,11 +331,11 @@ STUDIES = Registry("railway study", [
 
 
 def run_all(size: str = "quick", seed: int = 0, device: str = "cpu", only=None) -> dict:
-    """The studies of :data:`STUDIES` (``only``: a subset of their names) at ``size`` ("quick" or
+    """The studies of :data:`RAILWAY_STUDIES` (``only``: a subset of their names) at ``size`` ("quick" or
     "full"); a JSON-ready record: the provenance (:func:`mdroll.experiments.provenance`) and one
     entry per study."""
     s = SIZES.rung(size)
     record = provenance(device, size, seed, s)
-    for name in STUDIES if only is None else only:
-        record[name] = STUDIES.named(name)(s, seed, device)
+    for name in RAILWAY_STUDIES if only is None else only:
+        record[name] = RAILWAY_STUDIES.named(name)(s, seed, device)
     return record
