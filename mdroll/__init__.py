@@ -13,6 +13,7 @@ from .forces.steps import BOUNDARIES, step_range
 from .ensemble.lines import rough_lines
 from .ensemble.pipeline import EnsembleResult, run_ensemble
 from ._version import __version__
+from .errors import MdrollError
 from .ensemble.spec import EnsembleSpec, run_specs
 from .params import ParameterError, Params
 
@@ -23,6 +24,7 @@ __all__ = [
     "DeviceError",
     "EnsembleResult",
     "EnsembleSpec",
+    "MdrollError",
     "ParameterError",
     "Params",
     "available_devices",

@@ -16,9 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
-class DeviceError(ValueError):
-    """A device that does not exist, or a CUDA run without the packages it needs."""
+from .errors import DeviceError
 
 
 @functools.cache

@@ -32,9 +32,14 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from tqdm.auto import tqdm
+
 from .ensemble.result import EnsembleResult
 from .ensemble.spec import EnsembleSpec
 from .params import ParameterError
+
+# Dask's ``distributed`` is an optional dependency (the ``distributed`` extra): the functions that
+# need it import it, so that this module imports without it.
 
 #: Units per worker when the unit size is not given: small enough to balance the load and to
 #: lose little work when a worker dies, large enough that a unit fills a batch.
@@ -167,8 +172,6 @@ def _write_atomic(path: Path, data: bytes) -> None:
 
 def _progress(total: int, enabled: bool):
     """One bar over all units, with the ETA."""
-    from tqdm.auto import tqdm
-
     return tqdm(total=total, unit="unit", desc="work units", dynamic_ncols=True, disable=not enabled)
 
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from . import physics
+from .errors import ParameterError
 
 
 #: The most springs a line may hold: one array dimension of Warp (32-bit).
@@ -20,13 +21,6 @@ MAX_POINTS = 2**31 - 1
 MIN_H0 = 1e-100
 #: Modes per piece of the band summed for lambda_A (32 MiB of float64).
 BAND_PIECE = 2**22
-
-
-class ParameterError(ValueError):
-    """A parameter is out of range, of the wrong type or not finite.
-
-    The message names the parameter, the value given and what is allowed.
-    """
 
 
 def _check_finite_positive(name: str, value) -> None:

@@ -11,9 +11,9 @@ def plot_psd(result, quantity: str = "accel", path=None, ax=None):
     """Log-log ensemble-mean PSD on omega (rad/s) with a +-1 standard-error band, annotated with
     omega_0 (section 4.2), q_min v0 (eq 21), the q^-(2H+3) slope (eq 23) and eq 40 (force; for the
     acceleration, eq 40 through the linearized wheel response). PSDs per rad/s: C(omega) = C(q)/v0."""
-    import matplotlib
+    import matplotlib  # here, not at the top: a run that draws nothing does not load it
 
-    matplotlib.use("Agg")
+    matplotlib.use("Agg")  # before pyplot: no display needed
     import matplotlib.pyplot as plt
 
     if quantity not in ("accel", "force"):
@@ -74,7 +74,7 @@ def column_extremes(x: np.ndarray, series, columns: int = PLOT_COLUMNS) -> np.nd
     ``columns`` equal steps of log x (x positive, increasing; NaN points ignored): lines and
     bands through these points draw as through all of them wherever a step is at most a pixel
     wide (M4 aggregation), with ~10^4 points instead of the ~5e5 bins of a thesis-scale
-    spectrum, whose two plots took ~1.3 s to draw on one CPU core."""
+    spectrum (the drawing time it saves: docs/performance.md, the CPU's full run)."""
     log_x = np.log(x)
     column = np.minimum(((log_x - log_x[0]) / max(log_x[-1] - log_x[0], 1e-300) * columns).astype(np.int64),
                         columns - 1)

@@ -18,10 +18,11 @@ from hypothesis import strategies as st
 
 import mdroll.plotting
 from mdroll import EnsembleResult, Params, cli
+from mdroll.cli.common import PARAM_NAMES
 from mdroll.ensemble import batching
 from mdroll.params import ROUGHNESS_LEVELS, ROUGHNESS_MODELS, SPECTRUM_KINDS, TEXT_FIELDS
 
-NAMES = cli.PARAM_NAMES
+NAMES = PARAM_NAMES
 TINY = {"L": 0.025, "dx": 2.5e-5}
 DEFAULTS = {**Params().as_dict(), **TINY, "q_max": math.pi / TINY["dx"], "n_real": 1}
 SPECIAL = [0.0, -1.0, 1e-300, 1e300, 1e100, float("nan"), float("inf"), -float("inf"), 5e-324]

@@ -11,7 +11,7 @@ import mdroll
 from mdroll import ParameterError
 from mdroll.cli import main
 from mdroll.inverse import Spectrum, expected_psd, fit, from_result, read_spectrum, read_table, table_spectrum
-from mdroll.inverse.model import Setting, lambda_A
+from mdroll.inverse.forward_model import Setting, lambda_A
 from mdroll import physics
 
 
@@ -377,7 +377,7 @@ def test_discrepancy_covers_the_closed_forms_bias_of_H_on_a_table(tmp_path):
     covers it; q_min and a, which a smooth r does not move, keep their intervals. Its variance is
     G Sigma G^T: for the tilt, the shift of the estimate when the table is refitted with a fixed r
     of tilt eps per octave, over eps, squared, times 0.02^2."""
-    from mdroll.inverse.model import Correction
+    from mdroll.inverse.forward_model import Correction
     from mdroll.inverse.roundtrip import realistic_case
 
     truth = mdroll.Params(L=1.0, v0=10.0)
@@ -415,6 +415,6 @@ def test_discrepancy_default_rule_and_bad_values():
         fit(s, known=known, discrepancy=-0.1)
     with pytest.raises(ParameterError, match=r"discrepancy = \(0.1, 2\) is not allowed"):
         fit(s, known=known, discrepancy=(0.1, 2))
-    fixed = mdroll.inverse.model.Correction((0.0, 10.0), (0.0, 0.0))
+    fixed = mdroll.inverse.forward_model.Correction((0.0, 10.0), (0.0, 0.0))
     with pytest.raises(ParameterError, match="applies to the closed form alone"):
         fit(s, known=known, correction=fixed, discrepancy=(0.03, 0.02))

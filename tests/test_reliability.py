@@ -1,6 +1,7 @@
 """Reliability: one clear error for every bad input, never silently wrong,
 deterministic ensembles, resumable runs after kill -9, bounded memory."""
 
+import errno
 import inspect
 import json
 import os
@@ -16,7 +17,9 @@ import pytest
 import warp as wp
 
 from mdroll import EnsembleResult, Params, __version__ as mdroll_version, contact_force, rough_lines, run_ensemble
-from mdroll.cli import LOCK, RUN_OUTPUTS, main as cli_main
+from mdroll.cli import main as cli_main
+from mdroll.cli.common import LOCK
+from mdroll.cli.run import RUN_OUTPUTS
 from mdroll.ensemble import batching, checkpoint as checkpoint_module, pipeline, validity
 from mdroll.forces.indenter import reach
 from mdroll.ensemble.checkpoint import CHECKPOINT, read_checkpoint
@@ -193,9 +196,8 @@ def test_cpu_and_cuda_give_the_same_spectra(cuda_devices):
 
 
 def test_split_across_processes_and_merged(quick_plots, tmp_path, capsys):
-    """Unequal parts started together without --out (they must not share a per-second
-    directory, where only the last would survive, and merge must take unequal counts): each keeps its own
-    locked directory and the merge is the whole ensemble."""
+    """Unequal parts started together without --out: each keeps its own locked directory (none
+    shares another's), and the merge is the whole ensemble."""
     common = ["--set", "L=0.05", "--device", "cpu", "--no-progress", "--seed", "4"]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
     procs = [subprocess.Popen([sys.executable, "-m", "mdroll", "run", "--first", str(first), "--realizations", str(count),
@@ -268,8 +270,9 @@ def test_thesis_scale_batches_fit_a_24_gib_host():
     assert batch * batching.BYTES_PER_POINT * thesis.n_points <= 12 * 2**30
 
 
-# ============================================================================= failure modes
-# Each case below is a way to fail that the CLI must refuse: a traceback, a hang, a silently wrong or lost result.
+# ============================================================================= the command line's edges
+# Each case below ends in one line and exit 2, or a complete result: never a traceback, a hang, a
+# silently wrong or lost result.
 
 @pytest.fixture
 def quick_plots(monkeypatch):
@@ -390,6 +393,28 @@ def test_out_paths_are_checked_before_any_work(tmp_path, capsys):
         readonly.mkdir()
         readonly.chmod(0o555)
         _refused(capsys, "cannot write there", "run", "--out", readonly, *TINY)
+
+
+def test_an_os_error_while_writing_is_one_line_naming_the_file(tmp_path, capsys, monkeypatch):
+    import mdroll.plotting
+
+    def disk_full(result, quantity, file):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(tmp_path / "run" / "accel_psd.png"))
+
+    monkeypatch.setattr(mdroll.plotting, "plot_psd", disk_full)
+    line = _refused(capsys, os.strerror(errno.ENOSPC), "run", "--out", tmp_path / "run", "--realizations", 1, *TINY)
+    assert "accel_psd.png" in line
+
+
+def test_a_bug_shows_as_its_traceback_not_as_bad_input(tmp_path, monkeypatch):
+    import mdroll.plotting
+
+    def broken(result, quantity, file):
+        raise ValueError("a bug, not the user's input")
+
+    monkeypatch.setattr(mdroll.plotting, "plot_psd", broken)
+    with pytest.raises(ValueError, match="a bug"):
+        cli_main(["run", "--out", str(tmp_path / "run"), "--realizations", "1", *TINY])
 
 
 def test_a_directory_a_live_run_holds_is_refused(quick_plots, tmp_path, capsys):

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..devices import cpu_cores, is_cuda, queue_on, resolve_device, to_warp, warp
+from ..errors import NonFiniteError
 from ..kernels.dynamics import INTEGRATORS
 from ..kernels.moments import NOT_FINITE
 from ..params import ParameterError, Params
@@ -45,10 +46,6 @@ CHECKPOINT_SECONDS = 30.0
 #: Realizations a CPU thread runs through the stages at once (:class:`_CpuWorkers`): few, so
 #: that its arrays stay small and are reused (docs/performance.md, CPU).
 CPU_CHUNK = 2
-
-
-class NonFiniteError(FloatingPointError):
-    """NaN or infinity in a force or spectrum; the message names the realization and stage."""
 
 
 def _raise_on_rows(bad_rows: np.ndarray, what: str, stage: str, indices: np.ndarray) -> None:

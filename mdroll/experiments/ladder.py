@@ -8,7 +8,7 @@ An experiment states what each rung means for it (its line lengths, realizations
 
 from __future__ import annotations
 
-from ..params import ParameterError
+from ..errors import ParameterError
 
 #: The rungs, smallest first.
 SIZES = ("test", "quick", "full")
@@ -17,7 +17,7 @@ SIZES = ("test", "quick", "full")
 class Ladder(dict):
     """An experiment's parameters per rung: ``Ladder(quick=..., full=...)``; ``ladder[size]``
     is the rung's parameters (any object the experiment reads), ``ladder.rung(size)`` the same
-    with a one-line :class:`~mdroll.params.ParameterError` for a size the ladder lacks."""
+    with a one-line :class:`~mdroll.errors.ParameterError` for a size the ladder lacks."""
 
     def __init__(self, **rungs):
         unknown = [size for size in rungs if size not in SIZES]

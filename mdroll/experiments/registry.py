@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-from ..params import ParameterError
+from ..errors import ParameterError
 
 
 class Registry(dict):
     """Named experiments in the order they were added; ``kind`` names them in errors ("study",
     "check"). ``registry.named(name)`` is the entry or a one-line
-    :class:`~mdroll.params.ParameterError`; :meth:`unknown` lists names not in it."""
+    :class:`~mdroll.errors.ParameterError`; :meth:`unknown` lists names not in it."""
 
     def __init__(self, kind: str, entries=()):
         super().__init__()

@@ -1,6 +1,6 @@
 """The simulated correction of the closed-form model: what eq 40 and eq 48 leave out.
 
-The forward model of :mod:`mdroll.inverse.model` is the linear part of the contact force (eq
+The forward model of :mod:`mdroll.inverse.forward_model` is the linear part of the contact force (eq
 40) with the contact-radius jitter, and the quadratic low band (eq 48). The exact MDR force of
 the simulator has more: the non-linear part of the contact force, which tilts the high band
 (physics.md section 7: eq 40 within 1 % to 24 q_min, 6 % to 96 q_min). A slope of a few per cent
@@ -35,8 +35,9 @@ import scipy.optimize
 from ..ensemble.spec import EnsembleSpec
 from ..params import ParameterError, Params
 from ..physics import TWO_PI
-from .model import PARAMETERS, Correction, expected_psd, load_times_radius, setting_for
-from .spectrum import from_result
+from .forward_model import PARAMETERS, Correction, expected_psd, load_times_radius, setting_for
+from .likelihood import long_run_factor
+from .observed import from_result
 
 #: Master seed of the correction's simulations (the same at every iteration: common random
 #: numbers, so that the iterates differ by the change of the estimate, not by noise).
@@ -45,14 +46,15 @@ SEED = 2_000_003
 #: bins, so its statistical error stays below the data's at K_c much smaller than K.
 PASSES = 32
 #: ... and at least this rolled distance K_c L (m): the octave at the band's bottom holds few bins
-#: on a short line (24 at L = 0.5 m), and its noise reaches E* through the response (L = 0.5 m,
-#: K = 100: median |error| of E* 2.2 % with K_c = 32, 1.1 % with 160; h0 2.0 and 1.2 %).
+#: on a short line (24 at L = 0.5 m), and its noise reaches h0 and E* through the response
+#: (docs/inverse.md, "The simulated correction": their errors with 32 and 160 passes at 0.5 m).
 DISTANCE = 80.0
 #: Knot spacing of log r, in octaves of q.
 OCTAVES = 1.0
 #: At most this many iterations (simulate at the estimate, refit): the map from one estimate to
-#: the next contracts by about 0.35 where the non-linearity is strongest (h0 = 2 um: H -0.056,
-#: -0.020, -0.007, -0.003, -0.002), by 0.1 at the defaults.
+#: the next contracts by about 0.35 where the non-linearity is strongest and by 0.1 at the
+#: defaults (docs/inverse.md, "The simulated correction"), so a step of the sixth is below 1 % of
+#: the first.
 ITERATIONS = 6
 #: The correction is not simulated where the estimate's contact radius exceeds this fraction of R
 #: (Hertz's small-contact assumption, d0 = a^2 / R << R, fails; the one-pass fits that wander there
@@ -84,7 +86,7 @@ def knots(band_q, octaves: float = OCTAVES) -> tuple:
 
 
 def hat_basis(q, knot_positions) -> np.ndarray:
-    """(n, k): the hat functions of :class:`~mdroll.inverse.model.Correction` at ``q`` (rad/m),
+    """(n, k): the hat functions of :class:`~mdroll.inverse.forward_model.Correction` at ``q`` (rad/m),
     so that ``log r(q) = hat_basis(q) @ log_ratio``."""
     x = np.log(np.asarray(q, dtype=np.float64))
     eye = np.eye(len(knot_positions))
@@ -94,9 +96,7 @@ def hat_basis(q, knot_positions) -> np.ndarray:
 def estimate_ratio(data, model, basis, kappa: float) -> tuple[np.ndarray, np.ndarray]:
     """The Whittle (Gamma, log-link) fit of ``data ~ model exp(basis @ c)``: c and its calibrated
     covariance ``phi tau (kappa B^T B)^-1`` (phi the Pearson dispersion, tau the long-run factor
-    of :func:`mdroll.inverse.fit.long_run_factor`). Convex in c: Newton's method from c = 0."""
-    from .fit import long_run_factor
-
+    of :func:`mdroll.inverse.likelihood.long_run_factor`). Convex in c: Newton's method from c = 0."""
     ratio = data / model
     start = np.zeros(basis.shape[1])
 
@@ -140,7 +140,7 @@ def measured_correction(ensemble, spectrum, estimates: dict, band) -> Correction
     """r(q) over ``band`` (rad/s) from the ``ensemble`` of :func:`correction_spec`, against the
     closed-form model at the same parameters (``estimates``, with the simulation's q_min on the
     line's grid and its q_max) evaluated in the simulation's own setting (its dt, L and window;
-    the estimate's leakage, which the simulated series has too; no noise floor): a :class:`~mdroll.inverse.model.Correction` with the
+    the estimate's leakage, which the simulated series has too; no noise floor): a :class:`~mdroll.inverse.forward_model.Correction` with the
     covariance of its log values (:func:`estimate_ratio`, kappa = the ensemble's passes)."""
     simulated = from_result(ensemble, spectrum.quantity, spectrum.window)
     v0 = estimates["v0"]
@@ -234,7 +234,7 @@ def _fitted(name: str, value: float) -> float:
 
 def _at_bound(result) -> str | None:
     """The first free parameter whose estimate lies at a bound of
-    :data:`~mdroll.inverse.model.PARAMETERS` (a fit that wandered off), or None."""
+    :data:`~mdroll.inverse.forward_model.PARAMETERS` (a fit that wandered off), or None."""
     for name in result.free:
         _, _, low, high = PARAMETERS[name]
         if not low * (1 + 1e-6) < result.estimates[name] < high * (1 - 1e-6):

@@ -2,17 +2,18 @@
 
 from __future__ import annotations
 
+import numpy as np
+import scipy.stats
+
 
 def plot_fit(result, path=None):
     """Two panels: the data and the model (log-log, two-sided PSD per rad/s on omega) and the ratio
     data / model with the 95 % band of a Gamma(kappa) bin; saved as PNG to ``path`` (a path or a
     binary file) when given."""
-    import matplotlib
+    import matplotlib  # here, not at the top: a fit that draws nothing does not load it
 
-    matplotlib.use("Agg")
+    matplotlib.use("Agg")  # before pyplot: no display needed
     import matplotlib.pyplot as plt
-    import numpy as np
-    import scipy.stats
 
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 7), sharex=True, height_ratios=[3, 1.4])
     unit = "(m/s$^2$)$^2$ s/rad" if result.quantity == "accel" else "N$^2$ s/rad"

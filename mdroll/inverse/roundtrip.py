@@ -25,8 +25,8 @@ from ..params import ParameterError, Params
 from ..physics import TWO_PI, effective_modulus
 from .correction import iterate, simulation_params
 from .fit import fit, refit
-from .model import load_times_radius
-from .spectrum import from_result, read_table, write_table
+from .forward_model import load_times_radius
+from .observed import from_result, read_table, write_table
 
 #: Parameters compared in a round trip, and their targets at the thesis's scale (K = 300,
 #: L = 5 m): absolute for H, relative for the others.

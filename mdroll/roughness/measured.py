@@ -47,7 +47,10 @@ def load_profile(path, dx: float | None = None) -> Profile:
     else:
         if not (isinstance(dx, (int, float)) and dx > 0 and np.isfinite(dx)):
             raise ParameterError(f"dx = {dx!r} is not allowed: the profile's spacing must be a positive length (m)")
-        h = np.load(file) if file.suffix.lower() == ".npy" else np.loadtxt(file, comments="#", ndmin=1)
+        try:
+            h = np.load(file) if file.suffix.lower() == ".npy" else np.loadtxt(file, comments="#", ndmin=1)
+        except (ValueError, OSError) as exc:
+            raise ParameterError(f"profile = {str(path)!r} cannot be read as one numeric column: {exc}") from None
         h = np.asarray(h, dtype=np.float64).ravel()
     return make_profile(h, dx, str(path))
 

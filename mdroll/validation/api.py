@@ -34,6 +34,7 @@ import numpy as np
 from ..ensemble import measure
 from ..ensemble.measure import Z_SIGMA, band_sum, independent_ratio, paired_ratio, period_bands
 from ..ensemble.spec import EnsembleSpec
+from ..errors import PredictionError
 from ..params import ParameterError, Params
 from ..physics import BAND_EDGE_TOLERANCE
 from .plots import spectrum_plot
@@ -42,10 +43,6 @@ COMPARISONS = ("ratio", "slope", "period", "peak")
 QUANTITIES = ("force", "accel")
 #: Band units: multiples of q_min or of omega_0, or absolute (rad/m on the q axis, rad/s on omega).
 BAND_UNITS = ("q_min", "rad/m", "omega_0", "rad/s")
-
-
-class PredictionError(ParameterError):
-    """A check's prediction raised or returned a non-finite value (bad input: exit code 2)."""
 
 
 @dataclass

@@ -28,6 +28,7 @@ from ..ensemble.pipeline import progress_bar
 from ..ensemble.result import EnsembleResult
 from ..ensemble.spec import EnsembleSpec, run_specs
 from ..ensemble.psd import array_rows, psd_rows, to_host, wavenumbers
+from ..errors import ParameterError
 from .cache import NoCache
 
 #: Per-realization PSD rows are kept at least up to this many q_min (the bands the built-in
@@ -48,7 +49,7 @@ class Paired:
         """Per-realization sums (N^2 m) of the force PSD over the bins of ``mask``."""
         kept = self.rows.shape[1]
         if mask[kept:].any():
-            raise ValueError(f"band reaches beyond the kept bins (q <= {self.result.q[kept - 1]:.6g} rad/m)")
+            raise ParameterError(f"band reaches beyond the kept bins (q <= {self.result.q[kept - 1]:.6g} rad/m)")
         return self.rows[:, mask[:kept]].sum(axis=1)
 
 

@@ -223,7 +223,7 @@ class Correction:
 
 
 def setting_for(spectrum, v0: float, correction: Correction | None = None) -> Setting:
-    """The :class:`Setting` of a :class:`~mdroll.inverse.spectrum.Spectrum` rolled at ``v0`` (m/s):
+    """The :class:`Setting` of a :class:`~mdroll.inverse.observed.Spectrum` rolled at ``v0`` (m/s):
     its quantity, dt, window, line length and bin width (the first step of a uniform grid, else
     the smallest)."""
     omega = spectrum.omega

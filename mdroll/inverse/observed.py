@@ -22,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..ensemble.result import EnsembleResult
+from ..files import atomic_write
 from ..params import ParameterError, Params
 from ..physics import TWO_PI
 
@@ -180,8 +182,6 @@ def read_spectrum(path, quantity: str | None = None, window: bool = False, frequ
             if given:
                 raise ParameterError(f"{path} is an mdroll spectra.npz, whose units are known: {', '.join(given)} "
                                      "must not be given")
-            from ..ensemble.result import EnsembleResult
-
             return from_result(EnsembleResult.load(path), quantity or "accel", window)
     return read_table(path, quantity=quantity or "accel", frequency_unit=frequency_unit, sided=sided, density=density,
                       passes=passes, window=window)
@@ -273,8 +273,6 @@ def table_spectrum(frequency, psd, stderr=None, quantity: str = "accel", frequen
 def write_table(spectrum: Spectrum, path, frequency_unit: str = "Hz", sided: str = "one", density: str = "Hz") -> Path:
     """Write ``spectrum`` as a CSV table in a declared convention (the inverse of :func:`read_table`),
     atomically; the convention goes in a comment line."""
-    from ..files import atomic_write
-
     _choice("frequency_unit", frequency_unit, FREQUENCY_UNITS)
     _choice("sided", sided, SIDES)
     _choice("density", density, DENSITIES)

@@ -1,0 +1,90 @@
+"""The command line, ``mdroll COMMAND ...`` (also ``python -m mdroll ...``): one module per command,
+each with ``add_parser(sub)`` and ``execute(args) -> exit code``, and :mod:`.common` for what they
+share.
+
+A user's error (:class:`~mdroll.errors.MdrollError`, a bad option included) prints one line on
+stderr and exits with code 2; any other exception is a bug and shows its traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import errno
+import os
+import signal
+import sys
+
+from ..errors import MdrollError, NonFiniteError
+from . import bench, invert, merge, params, roughness, run, study, validate
+from .common import Parser, release_locks
+
+#: The commands in the order ``mdroll --help`` lists them.
+COMMANDS = {"params": params, "run": run, "validate": validate, "merge": merge, "invert": invert, "bench": bench,
+            "roughness": roughness, "study": study}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The parser of every command."""
+    parser = Parser(prog="mdroll", description="MDR rolling contact on rough rails: ensembles, forces, spectra.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
+    for command in COMMANDS.values():
+        command.add_parser(sub)
+    return parser
+
+
+#: OS errors that the machine's state causes, not mdroll (a full disk, a read-only or forbidden
+#: folder, a name too long): one line naming the path.
+_ENVIRONMENT_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EACCES, errno.EPERM, errno.EROFS, errno.ENAMETOOLONG}
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM (a scheduler stopping the job), raised so that it unwinds like Ctrl-C: temporary
+    files are removed, the lock released, the last checkpoint kept."""
+
+
+def _raise_terminated(signum, frame):
+    raise _Terminated
+
+
+def _error(text: str) -> int:
+    """The one line a user's error prints; exit code 2."""
+    print(f"mdroll: error: {text}", file=sys.stderr)
+    return 2
+
+
+def main(argv=None) -> int:
+    """Run ``mdroll`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
+    previous = None
+    with contextlib.suppress(ValueError):  # only the main thread may set a handler
+        previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        args = build_parser().parse_args(argv)
+        code = COMMANDS[args.command].execute(args)
+        sys.stdout.flush()  # here, so that a closed pipe is met inside the handlers below
+        return code
+    except NonFiniteError as exc:  # a force or spectrum not finite: realization and stage named
+        return _error(f"{exc}; the parameters give non-finite numbers")
+    except MdrollError as exc:
+        return _error(str(exc))
+    except MemoryError:
+        return _error("out of memory; lower --batch or --memory-limit, or L (more than the free memory was taken "
+                      "while the run went on)")
+    except BrokenPipeError:  # the reader left (mdroll params | head -2): nothing more to say
+        with contextlib.suppress(OSError, ValueError, AttributeError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141  # 128 + SIGPIPE, as a tool killed by the closed pipe reports
+    except OSError as exc:  # after BrokenPipeError, an OSError too
+        if exc.errno not in _ENVIRONMENT_ERRNOS:
+            raise
+        return _error((f"{exc.filename}: " if exc.filename else "") + exc.strerror)
+    except _Terminated:
+        print("mdroll: terminated; continue with mdroll run --resume DIR", file=sys.stderr)
+        return 143  # 128 + SIGTERM
+    except KeyboardInterrupt:
+        print("mdroll: interrupted", file=sys.stderr)
+        return 130
+    finally:
+        release_locks()
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)

@@ -1,0 +1,245 @@
+"""What every command shares: the parser class whose errors are one line, the options that several
+commands take (parameters from ``--set``/TOML/presets, sizes, output, clusters), and the output
+directory: checked, created and locked before any work."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import dataclasses
+import datetime
+import fcntl
+import os
+import secrets
+import sys
+import tempfile
+from pathlib import Path
+
+from ..errors import MdrollError, UsageError
+from ..files import read_toml
+from ..params import TEXT_FIELDS, Params
+
+PARAM_NAMES = tuple(f.name for f in dataclasses.fields(Params))
+PRESETS = {
+    # a small ensemble for a laptop CPU
+    "quick": {"L": 0.2, "n_real": 8},
+}
+#: The lock file a live run holds (fcntl.flock) in its output directory.
+LOCK = ".mdroll.lock"
+_held_locks: list[int] = []
+
+
+class Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are a :class:`UsageError` (one line, exit 2, no usage dump)."""
+
+    def error(self, message):
+        raise UsageError(message)
+
+
+# ----------------------------------------------------------------------------- options
+def param_options(p) -> None:
+    """``--config``, ``--set`` and ``--preset``: the run's :class:`~mdroll.Params` (:func:`build_params`)."""
+    p.add_argument("--config", metavar="FILE.toml", help="parameters from a TOML file")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE", help="set one parameter (repeatable), SI units")
+    p.add_argument("--preset", choices=sorted(PRESETS), help="quick: L = 0.2 m, 8 realizations")
+
+
+def size_options(p, quick: str, full: str) -> None:
+    """``--quick`` (the default) or ``--full``, into ``args.size``."""
+    size = p.add_mutually_exclusive_group()
+    size.add_argument("--quick", dest="size", action="store_const", const="quick", help=quick)
+    size.add_argument("--full", dest="size", action="store_const", const="full", help=full)
+
+
+def output_options(p) -> None:
+    """``--out``, ``--force`` and ``--no-progress``."""
+    p.add_argument("--out", help="output directory (default mdroll-out/<command>-<timestamp>)")
+    p.add_argument("--force", action="store_true", help="write into an existing output directory")
+    p.add_argument("--no-progress", action="store_true")
+
+
+def cluster_options(p) -> None:
+    """``--workers N`` and ``--scheduler ADDRESS``: where a command's ensembles run (mdroll.distributed)."""
+    p.add_argument("--workers", type=int, metavar="N", help="run on a local Dask cluster of N worker processes "
+                   "(one per GPU on a GPU machine, --device cpu for CPU processes)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="run on an existing Dask cluster (tcp://host:8786)")
+
+
+@contextlib.contextmanager
+def cluster_runner(args, checkpoint=None):
+    """The runner that ``--workers``/``--scheduler`` ask for (a :class:`mdroll.distributed.DaskRunner`
+    for ``run_specs(..., runner=)``), or None to run in this process; and the device the
+    ensembles then run on (a local cluster pins one worker to each GPU, which it sees as cuda:0)."""
+    if args.workers is None and args.scheduler is None:
+        yield None, args.device
+        return
+    # imported here for start-up cost: Dask loads only for a command that asks for a cluster
+    from ..distributed import DaskRunner, connect
+
+    device = args.device if args.scheduler is not None or args.device == "cpu" else "auto"
+    with connect(args.workers, args.scheduler, args.device) as client:
+        yield DaskRunner(client, checkpoint=checkpoint), device
+
+
+def progress_printer(args):
+    """A function that prints one progress line on stderr, or does nothing with ``--no-progress``."""
+    if args.no_progress:
+        return lambda text: None
+    return lambda text: print(text, file=sys.stderr, flush=True)
+
+
+# ----------------------------------------------------------------------------- parameters
+def _parse_value(key: str, text: str):
+    if key not in PARAM_NAMES:
+        raise UsageError(f"unknown parameter {key!r}; valid ones are: {', '.join(PARAM_NAMES)}")
+    if key in TEXT_FIELDS:
+        return text
+    try:
+        if key == "n_real":
+            return int(text)
+        return float(text)
+    except ValueError as exc:
+        raise UsageError(f"--set {key}={text}: not a number ({exc})") from None
+
+
+def load_config(path: str) -> dict:
+    """Parameters from a TOML file: top-level keys, or a ``[params]`` table alone; anything else
+    (unknown keys, other tables, top-level keys beside ``[params]``, a ``params`` that is not a
+    table) is refused, naming the key."""
+    data = read_toml(path, "config file", UsageError)
+    if "params" in data:
+        if not isinstance(data["params"], dict):
+            raise UsageError(f"config file {path}: 'params' must be a [params] table of parameters, "
+                             f"got {data['params']!r}")
+        beside = sorted(set(data) - {"params"})
+        if beside:
+            raise UsageError(f"config file {path}: {beside} beside the [params] table; put every parameter in it")
+        data = data["params"]
+    tables = sorted(key for key, value in data.items() if isinstance(value, dict))
+    if tables:
+        raise UsageError(f"config file {path}: unknown table(s) {tables}; only [params] is read")
+    unknown = sorted(set(data) - set(PARAM_NAMES))
+    if unknown:
+        raise UsageError(f"config file {path}: unknown parameter(s) {unknown}; valid ones are: {', '.join(PARAM_NAMES)}")
+    return data
+
+
+def build_params(args, base: dict | None = None) -> Params:
+    """The parameters of ``base``, then the preset, the config file, ``--set`` and ``--realizations`` on top."""
+    values: dict = dict(base or {})
+    if getattr(args, "preset", None):
+        values.update(PRESETS[args.preset])
+    if getattr(args, "config", None):
+        values.update(load_config(args.config))
+    for item in getattr(args, "set", None) or []:
+        if "=" not in item:
+            raise UsageError(f"--set expects key=value, got {item!r}")
+        key, text = item.split("=", 1)
+        values[key.strip()] = _parse_value(key.strip(), text.strip())
+    if getattr(args, "realizations", None) is not None:
+        if args.realizations < 1:
+            raise UsageError(f"--realizations {args.realizations}: the number of realizations must be at least 1")
+        values["n_real"] = args.realizations
+    return Params(**values)
+
+
+def format_value(value) -> str:
+    """A parameter's value for a table: 6 significant digits for floats."""
+    return f"{value:.6g}" if isinstance(value, float) else str(value)
+
+
+@contextlib.contextmanager
+def reading(what: str, path):
+    """Around a reader of a user's file: a file it cannot open or decode (its OSError or ValueError,
+    where it raised no :class:`MdrollError` of its own) ends in one line naming the file."""
+    try:
+        yield
+    except MdrollError:
+        raise
+    except (OSError, ValueError) as exc:
+        raise UsageError(f"{what} {str(path)!r} cannot be read: {exc}") from None
+
+
+# ----------------------------------------------------------------------------- output
+def output_dir(args, clear: tuple[str, ...] = ()) -> Path:
+    """The output directory, checked, created and locked before any work: ``--out`` (an existing
+    non-empty one only with ``--force``, which removes the files in ``clear``), or a new
+    ``mdroll-out/<command>-<timestamp>-<pid>-<random>``, made by one ``mkdir`` (so two runs
+    started in the same second never share it)."""
+    if args.out:
+        out = Path(args.out)
+        check_directory_path(out, "--out")
+        _make_directory(out, "--out", exist_ok=True)
+        if any(entry.name != LOCK for entry in out.iterdir()) and not args.force:
+            raise UsageError(f"output directory {str(out)!r} exists and is not empty; use --force to write into it")
+        lock(out, "--out")
+        for name in clear:
+            (out / name).unlink(missing_ok=True)
+        return out
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    base = Path("mdroll-out")
+    check_directory_path(base, "output directory")
+    _make_directory(base, "output directory", exist_ok=True)
+    for _ in range(100):
+        out = base / f"{args.command}-{stamp}-{os.getpid()}-{secrets.token_hex(3)}"
+        try:
+            out.mkdir()
+        except FileExistsError:
+            continue
+        except OSError as exc:
+            raise UsageError(f"output directory {str(out)!r}: cannot create it ({exc.strerror})") from None
+        lock(out, "output directory")
+        return out
+    raise UsageError(f"output directory: no free name under {str(base)!r}")  # pragma: no cover - 2^24 names a pid
+
+
+def check_directory_path(path: Path, option: str) -> None:
+    """Refuse a path that is a file, or lies under one."""
+    for ancestor in (path, *path.parents):
+        if ancestor.exists() or ancestor.is_symlink():
+            if not ancestor.is_dir():
+                where = "is a file" if ancestor == path else f"lies under {str(ancestor)!r}, a file"
+                raise UsageError(f"{option} {str(path)!r} {where}, not a directory")
+            return
+
+
+def check_file_path(path: Path, option: str) -> None:
+    """A file to be written later: its folder must exist and be a writable directory."""
+    folder = path.parent
+    if path.is_dir():
+        raise UsageError(f"{option} {path}: is a directory, expected a file name")
+    if not folder.is_dir() or not os.access(folder, os.W_OK):
+        raise UsageError(f"{option} {path}: the folder {folder} does not exist or is not writable")
+
+
+def _make_directory(path: Path, option: str, exist_ok: bool) -> None:
+    try:
+        path.mkdir(parents=True, exist_ok=exist_ok)
+    except OSError as exc:
+        raise UsageError(f"{option} {str(path)!r}: cannot create the directory ({exc.strerror})") from None
+
+
+def lock(out: Path, option: str) -> None:
+    """Hold ``out``'s lock file until the command ends (:func:`release_locks`), and check that
+    files can be written there; refuse a directory another live mdroll holds."""
+    try:
+        fd = os.open(out / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+        tempfile.TemporaryFile(dir=out).close()  # a write probe: permissions, read-only file systems
+    except OSError as exc:
+        raise UsageError(f"{option} {str(out)!r}: cannot write there ({exc.strerror})") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        owner = os.read(fd, 32).decode(errors="replace").strip() or "?"
+        os.close(fd)
+        raise UsageError(f"{option} {str(out)!r} is in use by another running mdroll (pid {owner}); wait for it to "
+                         "finish or choose another directory") from None
+    os.ftruncate(fd, 0)
+    os.write(fd, f"{os.getpid()}\n".encode())
+    _held_locks.append(fd)
+
+
+def release_locks() -> None:
+    """Release every lock this process took (at the end of :func:`mdroll.cli.main`)."""
+    while _held_locks:
+        os.close(_held_locks.pop())

@@ -1,0 +1,171 @@
+"""``mdroll run``: an ensemble's spectra, summary, band levels and plots; resumable, and on a Dask
+cluster with ``--workers``/``--scheduler``."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+from .. import plotting
+from ..devices import resolve_device
+from ..distributed import saved_specs
+from ..forces.registry import ALGORITHMS, DEFAULT_ALGORITHMS, REGISTRY
+from ..ensemble.batching import check_count_fits, check_run_fits, realization_bytes
+from ..ensemble.checkpoint import CHECKPOINT, read_checkpoint
+from ..ensemble.pipeline import run_ensemble
+from ..ensemble.result import result_summary
+from ..ensemble.spec import EnsembleSpec
+from ..ensemble.validity import parameter_concerns, result_concerns
+from ..errors import UsageError
+from ..files import atomic_write
+from ..railway.report import write_band_outputs
+from .common import (build_params, cluster_options, cluster_runner, format_value, lock, output_dir, output_options,
+                     param_options)
+
+#: What ``run`` and ``merge`` write; ``--force`` removes the old ones first, so that a finished
+#: run's files never mix with a new run's.
+RUN_OUTPUTS = ("spectra.npz", "summary.json", "accel_psd.png", "force_psd.png", "bands.csv", "bands.png")
+#: Settings of a run besides its parameters, and their defaults (a resumed run's are its checkpoint's).
+RUN_DEFAULTS = {"seed": 0, "algorithm": None, "mode": "decoupled", "boundary": "open", "window": False}
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("run", help="run an ensemble and write spectra, summary and plots")
+    param_options(p)
+    p.add_argument("--realizations", type=int, help="number of realizations (default n_real = 300)")
+    p.add_argument("--first", type=int, help="index of the first realization (default 0): split an ensemble "
+                   "across processes, then `mdroll merge`")
+    p.add_argument("--seed", type=int, help="master seed (default 0)")
+    p.add_argument("--algorithm", choices=ALGORITHMS, help="default: " + ", ".join(
+        f"{name} ({mode})" for mode, name in DEFAULT_ALGORITHMS.items()) + "; " + "; ".join(
+        f"{entry.name}: {entry.description}, {entry.complexity.text}" for entry in REGISTRY.values()))
+    p.add_argument("--mode", choices=["decoupled", "coupled"], help="default decoupled")
+    p.add_argument("--boundary", choices=["open", "periodic"], help="default open")
+    p.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
+    p.add_argument("--batch", type=int, help="realizations per batch (default: from free memory)")
+    p.add_argument("--memory-limit", type=float, metavar="GIB", help="cap the memory batches are sized from (GiB)")
+    p.add_argument("--window", action="store_true", default=None, help="Hann window before the FFT")
+    p.add_argument("--resume", metavar="DIR", help="continue the interrupted run in DIR (its checkpoint.npz); "
+                   "its outputs go there too")
+    p.add_argument("--force-physics", action="store_true", help="run parameters outside the model's validity "
+                   "(h0 not small against d0, a time step that shifts the resonance); the summary lists why")
+    cluster_options(p)
+    output_options(p)
+
+
+def execute(args) -> int:
+    if args.workers is not None or args.scheduler is not None:
+        return _run_distributed(args)
+    device = resolve_device(args.device)
+    if args.resume:
+        if args.out:
+            raise UsageError(f"--out {args.out} with --resume {args.resume}: a resumed run writes into its own "
+                             "directory; drop --out")
+        out = Path(args.resume)
+        if not (out / CHECKPOINT).is_file():
+            raise UsageError(f"--resume {args.resume}: no {CHECKPOINT} there to continue from")
+        lock(out, "--resume")
+        meta, _ = read_checkpoint(out / CHECKPOINT)
+        # the checkpoint's run, with anything given on the command line on top (compared when resuming)
+        params = build_params(args, base=meta["params"])
+        settings = _settings(args, meta)
+        realizations = meta["realizations"] if args.realizations is None and args.first is None else _realizations(args, params)
+    else:
+        params = build_params(args)
+        settings = _settings(args, RUN_DEFAULTS)
+        realizations = _realizations(args, params)
+    _refuse_outside_validity(args, params)
+    memory = None
+    if args.memory_limit is not None:
+        memory = _positive_gib(args.memory_limit)
+        need = 2 * realization_bytes(params)  # a batch gets half the limit
+        if memory < need:
+            raise UsageError(f"--memory-limit {args.memory_limit:g} GiB is too small: one realization of "
+                             f"{params.n_points} springs needs {need / 2**30:.3g} GiB (a batch gets half the limit)")
+    check_run_fits(params, device, memory)
+    if not args.resume:
+        out = output_dir(args, clear=RUN_OUTPUTS + (CHECKPOINT,))
+    result = run_ensemble(params, realizations=realizations, device=device, batch=args.batch,
+                          progress=not args.no_progress, checkpoint=out / CHECKPOINT, resume=bool(args.resume),
+                          memory_limit=memory, **settings)
+    write_outputs(result, out)
+    return 0
+
+
+def _run_distributed(args) -> int:
+    """``mdroll run --workers N | --scheduler ADDRESS``: the run's units on a Dask cluster; every
+    finished unit is kept in OUT/units, from which ``--resume OUT`` continues."""
+    if args.resume:
+        out = Path(args.resume)
+        (spec,) = saved_specs(out / "units")
+    else:
+        params = build_params(args)
+        settings = _settings(args, RUN_DEFAULTS)
+        indices = _realizations(args, params)
+        if not isinstance(indices, range):
+            raise UsageError(f"--realizations {args.realizations}: the number of realizations must be at least 1")
+        _refuse_outside_validity(args, params)
+        spec = EnsembleSpec(params, first=indices.start, realizations=len(indices), **settings)
+        out = output_dir(args, clear=RUN_OUTPUTS)
+    with cluster_runner(args, checkpoint=out / "units") as (runner, device):
+        (result,) = runner.run_specs([spec], device=device, progress=not args.no_progress)
+    write_outputs(result, out)
+    return 0
+
+
+def _settings(args, base: dict) -> dict:
+    """The run's settings (the keys of :data:`RUN_DEFAULTS`): those given on the command line, else ``base``'s."""
+    return {k: base[k] if getattr(args, k) is None else getattr(args, k) for k in RUN_DEFAULTS}
+
+
+def _refuse_outside_validity(args, params) -> None:
+    """Refuse parameters outside the model's validity (:mod:`mdroll.ensemble.validity`) unless
+    ``--force-physics``: the summary's ``physics_warnings`` then say why its numbers are suspect."""
+    concerns = parameter_concerns(params)
+    if concerns and not args.force_physics:
+        raise UsageError("; ".join(concerns) + " (--force-physics runs it anyway)")
+
+
+def _realizations(args, params):
+    count = params.n_real if args.realizations is None else args.realizations
+    first = args.first or 0
+    if first < 0:
+        raise UsageError(f"--first {first}: the first realization index must be >= 0")
+    if count > 0:
+        check_count_fits(count)
+    return range(first, first + count) if count > 0 else count  # count <= 0: run_ensemble names the error
+
+
+def _positive_gib(value: float) -> int:
+    if not (math.isfinite(value) and value > 0):
+        raise UsageError(f"--memory-limit {value:g}: must be a positive, finite number of GiB")
+    return int(value * 2**30)
+
+
+def write_outputs(result, out: Path) -> None:
+    """spectra.npz, summary.json and the two PNGs, each written atomically (summary.json last:
+    its presence marks a complete output), the physics warnings on stderr, and the summary
+    table on stdout."""
+    result.save(out / "spectra.npz")
+    for quantity in ("accel", "force"):
+        with atomic_write(out / f"{quantity}_psd.png") as file:
+            plotting.plot_psd(result, quantity, file)
+    summary = result_summary(result)
+    write_band_outputs(result, out, summary)
+    summary["physics_warnings"] = result_concerns(result)
+    with atomic_write(out / "summary.json", "w") as file:
+        json.dump(summary, file, indent=2)
+
+    print(f"\n{result.n_real} realizations x {result.steps} steps, {result.algorithm}, {result.mode}, "
+          f"{result.boundary} boundary, device {result.device}")
+    rows = [(k, format_value(v["value"]), v["unit"]) for k, v in summary["derived"].items()]
+    rows += [("force mean", format_value(result.force_mean), "N"), ("force RMS", format_value(result.force_rms), "N"),
+             ("contact lost", str(result.contact_lost_steps), "steps")]
+    rows += [(f"time {k}", f"{v:.3f}", "s") for k, v in result.timings.items()]
+    for name, value, unit in rows:
+        print(f"  {name:<20} {value:>14}  {unit}")
+    print(f"wrote {out}/: spectra.npz summary.json accel_psd.png force_psd.png bands.csv bands.png")
+    for concern in summary["physics_warnings"]:
+        print(f"mdroll: warning: {concern}", file=sys.stderr)

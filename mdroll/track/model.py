@@ -1,0 +1,167 @@
+"""The track's parameters: a frozen :class:`Track`, its presets, and its ``track.KEY=VALUE`` form.
+
+The rail is a Timoshenko beam (Knothe & Grassie 1993; Grassie, Gregory, Harrison & Johnson 1982)
+on rail pads, sleepers and ballast (Thompson, *Railway Noise and Vibration*, 2009, chapter 3).
+Its section defaults are those of the 60E1 (UIC 60) rail of EN 13674-1: second moment of area
+I = 3038.3 cm^4, cross-section A = 76.70 cm^2, mass 60.21 kg/m; steel E = 210 GPa, G = 81 GPa,
+density 7850 kg/m^3; shear coefficient 0.4 for vertical bending of a flat-bottom rail (Thompson
+2009, chapter 3; Grassie et al. 1982). Pad, sleeper and ballast values of the presets are
+representative values inside the ranges Thompson 2009 (chapter 3) gives for ballasted tracks
+with soft and stiff pads and for slab track, not a transcription of one of its tables
+(:data:`SOURCES` says which range each stands for).
+Units are SI; every stiffness and mass of the support is that of one support (one rail seat).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, fields
+
+from mdroll.params import ParameterError
+
+#: Support models: ``rigid`` (an immovable rail, zero receptance), ``continuous`` (the supports
+#: smeared along the rail, per length k / sleeper_spacing), ``discrete`` (one support per sleeper).
+SUPPORTS = ("rigid", "continuous", "discrete")
+
+#: 60E1 (UIC 60) rail, EN 13674-1, with E = 210 GPa, G = 81 GPa, rho = 7850 kg/m^3.
+UIC60 = {
+    "rail_EI": 210e9 * 3038.3e-8,          # N m^2: E I, I = 3038.3 cm^4
+    "rail_mass": 60.21,                    # kg/m
+    "rail_shear_stiffness": 0.4 * 81e9 * 76.70e-4,  # N: kappa G A, kappa = 0.4, A = 76.70 cm^2
+    "rail_rotary_inertia": 7850.0 * 3038.3e-8,      # kg m: rho I
+}
+
+#: Presets: values and where they come from. ``rigid`` is today's immovable rail.
+PRESETS: dict[str, dict] = {
+    "rigid": {"support": "rigid"},
+    # concrete monobloc sleepers on ballast, soft (studded rubber) pads: Thompson 2009 ch. 3
+    "ballasted-soft-pad": {"support": "discrete", "pad_stiffness": 120e6, "pad_loss": 0.25,
+                           "sleeper_mass": 150.0, "ballast_stiffness": 100e6, "ballast_loss": 1.0,
+                           "sleeper_spacing": 0.6},
+    # the same track with stiff (EVA / HDPE) pads: Thompson 2009 ch. 3
+    "ballasted-stiff-pad": {"support": "discrete", "pad_stiffness": 1000e6, "pad_loss": 0.25,
+                            "sleeper_mass": 150.0, "ballast_stiffness": 100e6, "ballast_loss": 1.0,
+                            "sleeper_spacing": 0.6},
+    # direct-fixation slab track: a soft baseplate fastening on a stiff concrete slab, the
+    # baseplate as the small intermediate mass: Thompson 2009 ch. 3 (slab and embedded tracks)
+    "slab": {"support": "discrete", "pad_stiffness": 40e6, "pad_loss": 0.2,
+             "sleeper_mass": 5.0, "ballast_stiffness": 5e9, "ballast_loss": 0.1,
+             "sleeper_spacing": 0.65},
+}
+
+SOURCES = {
+    "rigid": "no track: the immovable rail of physics.md section 1",
+    "ballasted-soft-pad": "soft pads (about 100-200 MN/m), half monobloc sleepers (about 150 kg) and ballast "
+                          "(about 50-100 MN/m, loss 1): ranges of Thompson 2009 ch. 3",
+    "ballasted-stiff-pad": "stiff pads (about 1 GN/m and above), otherwise as the soft-pad track: Thompson 2009 ch. 3",
+    "slab": "direct fixation: a soft baseplate fastening (about 20-60 MN/m) on a slab: Thompson 2009 ch. 3",
+}
+
+
+@dataclass(frozen=True)
+class Track:
+    """A rail on rail pads, sleepers and ballast (SI units; pad, sleeper and ballast per support).
+
+    Attributes
+    ----------
+    support : str
+        ``"rigid"``, ``"continuous"`` or ``"discrete"`` (:data:`SUPPORTS`). Default continuous.
+    rail_EI : float
+        Bending stiffness E I of the rail (N m^2). Default 60E1: 6.380e6 N m^2.
+    rail_mass : float
+        Rail mass per length rho A (kg/m). Default 60.21 kg/m.
+    rail_shear_stiffness : float
+        Shear stiffness kappa G A (N). Default 0.4 x 81 GPa x 76.70 cm^2 = 2.485e8 N; ``inf``
+        gives the Euler-Bernoulli beam (with ``rail_rotary_inertia = 0``).
+    rail_rotary_inertia : float
+        Rotary inertia per length rho I (kg m). Default 0.2385 kg m.
+    rail_loss : float
+        Loss factor of the rail's moduli, E I (1 + i eta) and kappa G A (1 + i eta). Default 0.02.
+    pad_stiffness, pad_loss : float
+        Rail pad stiffness (N/m, one support) and loss factor. Default 200 MN/m, 0.25.
+    sleeper_mass : float
+        Mass on one support, half a sleeper (kg). Default 150 kg; 0 means none.
+    ballast_stiffness, ballast_loss : float
+        Ballast stiffness under one support (N/m) and loss factor. Default 100 MN/m, 1.0.
+    sleeper_spacing : float
+        Distance between supports (m). Default 0.6 m.
+    """
+
+    support: str = "continuous"
+    rail_EI: float = UIC60["rail_EI"]
+    rail_mass: float = UIC60["rail_mass"]
+    rail_shear_stiffness: float = UIC60["rail_shear_stiffness"]
+    rail_rotary_inertia: float = UIC60["rail_rotary_inertia"]
+    rail_loss: float = 0.02
+    pad_stiffness: float = 200e6
+    pad_loss: float = 0.25
+    sleeper_mass: float = 150.0
+    ballast_stiffness: float = 100e6
+    ballast_loss: float = 1.0
+    sleeper_spacing: float = 0.6
+
+    def __post_init__(self) -> None:
+        if self.support not in SUPPORTS:
+            raise ParameterError(f"track.support = {self.support!r} is not allowed: choose one of {list(SUPPORTS)}")
+        for name in ("rail_EI", "rail_mass", "pad_stiffness", "ballast_stiffness", "sleeper_spacing"):
+            _check(name, getattr(self, name), "positive and finite", lambda v: math.isfinite(v) and v > 0)
+        _check("rail_shear_stiffness", self.rail_shear_stiffness, "positive (inf: Euler-Bernoulli)",
+               lambda v: v > 0 and not math.isnan(v))
+        for name in ("rail_rotary_inertia", "rail_loss", "pad_loss", "sleeper_mass", "ballast_loss"):
+            _check(name, getattr(self, name), "zero or positive and finite", lambda v: math.isfinite(v) and v >= 0)
+
+    @classmethod
+    def preset(cls, name: str) -> "Track":
+        """The preset ``name`` of :data:`PRESETS` (sources in :data:`SOURCES`)."""
+        if name not in PRESETS:
+            raise ParameterError(f"track = {name!r} is not allowed: choose one of {list(PRESETS)}")
+        return cls(**PRESETS[name])
+
+    def with_values(self, **values) -> "Track":
+        """A copy with some fields changed (validated again); unknown names raise ParameterError."""
+        names = [f.name for f in fields(self)]
+        unknown = sorted(set(values) - set(names))
+        if unknown:
+            raise ParameterError(f"track.{unknown[0]} is not allowed: the track keys are {names}")
+        return dataclasses.replace(self, **values)
+
+    @classmethod
+    def from_settings(cls, settings: Mapping[str, str] | Iterable[str]) -> "Track":
+        """A track from ``track=PRESET`` and ``track.KEY=VALUE`` settings (strings, as on a
+        command line), given as a mapping ``{"track.pad_loss": "0.3"}`` or as ``"KEY=VALUE"``
+        strings. The preset applies first (default: the class defaults), then the keys in order."""
+        pairs = list(settings.items()) if isinstance(settings, Mapping) else [_split(item) for item in settings]
+        track = cls()
+        for key, value in pairs:
+            if key == "track":
+                track = cls.preset(value)
+        for key, value in pairs:
+            if key != "track":
+                name = key.removeprefix("track.")
+                track = track.with_values(**{name: value if name == "support" else _number(key, value)})
+        return track
+
+    def as_dict(self) -> dict:
+        """The fields as a plain dict."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+def _check(name: str, value, allowed: str, test) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not test(float(value)):
+        raise ParameterError(f"track.{name} = {value!r} is not allowed: it must be a real number, {allowed}")
+
+
+def _split(item: str) -> tuple[str, str]:
+    key, sep, value = item.partition("=")
+    if not sep:
+        raise ParameterError(f"track setting {item!r} is not allowed: write track.KEY=VALUE or track=PRESET")
+    return key.strip(), value.strip()
+
+
+def _number(key: str, value: str) -> float:
+    try:
+        return float(value)
+    except ValueError:
+        raise ParameterError(f"{key} = {value!r} is not allowed: it must be a number") from None
