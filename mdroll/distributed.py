@@ -312,12 +312,20 @@ def connect(workers: int | None = None, scheduler: str | None = None, device: st
     if (workers is None) == (scheduler is None):
         raise ParameterError("give either workers (a local cluster) or scheduler (an existing cluster), not both")
     if scheduler is not None:
+        # the client's own reports (a lost scheduler's reconnection attempts, with tracebacks)
+        # only when verbose: a lost scheduler ends in one SchedulerLost line
+        quiet = logging.getLogger("distributed")
+        before = quiet.level
+        quiet.setLevel(logging.INFO if verbose else logging.CRITICAL)
         try:
-            client = Client(scheduler, timeout="10s")
-        except OSError as exc:
-            raise ParameterError(f"scheduler = {scheduler!r}: cannot connect ({exc})") from None
-        with client:
-            yield client
+            try:
+                client = Client(scheduler, timeout="10s")
+            except OSError as exc:
+                raise ParameterError(f"scheduler = {scheduler!r}: cannot connect ({exc})") from None
+            with client:
+                yield client
+        finally:
+            quiet.setLevel(before)
         return
     client = local_cluster(workers, device, verbose)
     try:

@@ -4,10 +4,12 @@ one line: local clusters of worker processes on the CPU, as on CI."""
 
 import os
 import signal
+import socket
 import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -194,3 +196,41 @@ def test_cluster_options_without_dask_are_one_line(tmp_path):
     assert len(lines) == 2, run.stderr
     for option, line in zip(("--workers", "--scheduler"), lines):
         assert line.endswith(f"{option} needs Dask distributed, which is not installed: pip install 'mdroll[distributed]'")
+
+
+def test_killed_scheduler_is_one_line_and_keeps_the_run(tmp_path, capfd):
+    from mdroll.cli import main
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        address = f"tcp://127.0.0.1:{s.getsockname()[1]}"
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).parents[1]))
+    quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL, "env": env}
+    scheduler = subprocess.Popen(["dask", "scheduler", "--host", "127.0.0.1", "--port", address.rsplit(":", 1)[1],
+                                  "--no-dashboard"], **quiet)
+    worker = subprocess.Popen(["dask", "worker", address, "--nthreads", "1", "--no-dashboard"], **quiet)
+    out = tmp_path / "run"
+    manifest = out / "units" / "manifest.json"
+
+    def kill_when_the_units_run():
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and not (manifest.exists() and '"sizes": [' in manifest.read_text()):
+            time.sleep(0.02)
+        scheduler.send_signal(signal.SIGKILL)
+
+    killer = threading.Thread(target=kill_when_the_units_run)
+    try:
+        killer.start()
+        code = main(["run", "--set", "L=1", "--realizations", "400", "--device", "cpu", "--no-progress",
+                     "--scheduler", address, "--out", str(out)])
+        killer.join()
+    finally:
+        scheduler.kill()
+        worker.kill()
+        scheduler.wait()
+        worker.wait()
+    lines = capfd.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, lines
+    assert f"lost the Dask scheduler at {address}" in lines[0]
+    assert f"continue with: mdroll run --resume {out} --scheduler {address}" in lines[0]
+    assert manifest.exists()

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from .. import plotting
 from ..devices import resolve_device
-from ..distributed import saved_specs
+from ..distributed import SchedulerLost, saved_specs
 from ..forces.registry import ALGORITHMS, DEFAULT_ALGORITHMS, REGISTRY
 from ..ensemble.batching import check_count_fits, check_run_fits, realization_bytes
 from ..ensemble.checkpoint import CHECKPOINT, read_checkpoint
@@ -117,7 +117,11 @@ def _run_distributed(args) -> int:
         spec = _distributed_spec(args, None, RUN_DEFAULTS, None)
         out = output_dir(args, clear=RUN_OUTPUTS)
     with cluster_runner(args, checkpoint=out / "units") as (runner, device):
-        (result,) = runner.run_specs([spec], device=device, progress=not args.no_progress)
+        try:
+            (result,) = runner.run_specs([spec], device=device, progress=not args.no_progress)
+        except SchedulerLost as exc:
+            where = f"--scheduler {args.scheduler}" if args.scheduler else f"--workers {args.workers}"
+            raise UsageError(f"{exc}; continue with: mdroll run --resume {out} {where}") from None
     write_outputs(result, out)
     return 0
 
