@@ -1,19 +1,22 @@
 """Ensembles on Dask distributed: many specs, many workers, one answer.
 
 A list of :class:`~mdroll.ensemble.spec.EnsembleSpec` is cut into *work units* (a spec's slice of
-consecutive realizations, :meth:`EnsembleSpec.split`). Each unit runs as one Dask task on a
-worker, on that worker's device, and returns only binned accumulators: its
-:class:`~mdroll.ensemble.result.EnsembleResult` (per-bin mean PSDs and their standard errors,
-force sums, counts) — never a per-realization series. The client merges each spec's units in a
-fixed order (by first realization) with the exact pairwise merge of means and variances
-(:meth:`EnsembleResult.merge`, Chan et al.), so the result equals a one-process run to rounding
-(<= 1e-12 relative) whatever the partition and the number of workers: every realization derives
-from (seed, realization index) alone.
+consecutive realizations, :meth:`EnsembleSpec.split`) of whole batches of the workers' devices
+(:func:`default_unit_size`). Each unit runs as one Dask task on a worker, on that worker's device,
+and its :class:`~mdroll.ensemble.result.EnsembleResult` (per-bin mean PSDs and their standard
+errors, force sums, counts; never a per-realization series) stays on that worker. When all are
+done, each worker merges its units of each spec, the workers' partial results are merged in pairs
+on the workers, and the client receives one result per spec: the exact pairwise merge of means
+and variances (:meth:`EnsembleResult.merge`, Chan et al.), so the result equals a one-process run
+to rounding (<= 1e-12 relative) whatever the partition and the number of workers: every
+realization derives from (seed, realization index) alone.
 
-Faults. A worker that dies mid-unit loses only that unit's work: Dask reschedules it on another
-worker, and the client keeps each unit's result under its id, so nothing is counted twice or
-lost. With ``checkpoint=DIR`` every finished unit is written to ``DIR`` (atomically) as it
-arrives; a later run with the same specs reads them back and computes only the missing units.
+Faults. A worker that dies loses only its units: Dask runs them again on another worker (the
+finished ones too, their results being lost with it), each under its own key, so nothing is
+counted twice or lost. A lost scheduler ends the run with :class:`SchedulerLost`. With
+``checkpoint=DIR`` every worker writes each finished unit to ``DIR`` (atomically), next to a
+manifest of the specs and unit sizes; a later run with the same specs reads them back and
+computes only the missing units.
 
 Warp across processes. Workers are separate processes started by *spawn* (Dask's nanny never
 forks a process that holds a CUDA context), and each GPU worker is pinned to its GPU through
