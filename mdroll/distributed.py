@@ -108,8 +108,9 @@ def run_unit(spec: EnsembleSpec, device: str, options: dict, checkpoint: str | N
 
 
 def merge_results(*results: EnsembleResult) -> EnsembleResult:
-    """The task that reduces a worker's units of one spec on that worker (:meth:`EnsembleResult.merge`)."""
-    return EnsembleResult.merge(list(results))
+    """One result of several of one spec (:meth:`EnsembleResult.merge`; one result is itself):
+    the reduction's task on the workers, and its last step on the client."""
+    return results[0] if len(results) == 1 else EnsembleResult.merge(list(results))
 
 
 class SchedulerLost(MdrollError):
@@ -192,7 +193,7 @@ class DaskRunner:
         for i in range(len(specs)):
             mine = ([parts[i]] if i in parts else []) + [done[u.uid] for u in units
                                                          if u.spec_index == i and u.uid in done]
-            merged = EnsembleResult.merge(mine)
+            merged = merge_results(*mine)
             merged.realizations = sorted(merged.realizations)
             results.append(merged)
         return results
@@ -212,8 +213,9 @@ class DaskRunner:
     def _reduce_on_workers(self, futures: dict, run: str) -> dict:
         """Each worker's units of each spec merged on that worker, then the workers' partial
         results merged in pairs on the workers (a tree: log2 of the workers' number of steps, each
-        moving one partial result between two workers), and each spec's one result brought to the
-        client. A lost worker's units are computed again by Dask, from their tasks."""
+        moving one partial result between two workers) down to two, which the client receives at
+        once and merges: one result per spec. A lost worker's units are computed again by Dask,
+        from their tasks."""
         holders = self.client.who_has(list(futures))
         groups: dict = {}
         for future, unit in futures.items():
@@ -221,15 +223,16 @@ class DaskRunner:
             groups.setdefault((unit.spec_index, where), []).append(future)
         level: dict = {}
         for n, ((spec_index, where), group) in enumerate(groups.items()):
-            level.setdefault(spec_index, []).append(self.client.submit(
+            level.setdefault(spec_index, []).append(group[0] if len(group) == 1 else self.client.submit(
                 merge_results, *group, workers=None if where is None else [where], allow_other_workers=True,
                 key=f"mdroll-merge-{run}-{n}"))
         step = 0
-        while any(len(parts) > 1 for parts in level.values()):
+        while any(len(parts) > 2 for parts in level.values()):  # the last two go to the client at once
             step += 1
             level = {i: [self.client.submit(merge_results, *parts[k:k + 2], key=f"mdroll-merge-{run}-{step}-{i}-{k}")
-                         for k in range(0, len(parts), 2)] for i, parts in level.items()}
-        return dict(zip(level, self.client.gather([parts[0] for parts in level.values()])))
+                         if k + 1 < len(parts) else parts[k] for k in range(0, len(parts), 2)]
+                     for i, parts in level.items()}
+        return {i: merge_results(*self.client.gather(parts)) for i, parts in level.items()}
 
     # -- checkpoint: one file per finished unit (written by the workers), and a manifest of the
     # run's specs and unit sizes (a resumed run keeps them, whatever its number of workers)
