@@ -80,7 +80,10 @@ def largest_difference(result, reference: dict) -> float:
 
 
 def commit() -> str:
-    proc = subprocess.run(["git", "rev-parse", "HEAD"], cwd=Path(__file__).parent, capture_output=True, text=True)
+    try:
+        proc = subprocess.run(["git", "rev-parse", "HEAD"], cwd=Path(__file__).parent, capture_output=True, text=True)
+    except OSError:
+        return "unknown"
     return proc.stdout.strip() or "unknown"
 
 
@@ -90,6 +93,7 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2, help="the larger cluster (default 2)")
     parser.add_argument("--seconds", type=float, default=1.0, help="in-process time of the sized workload")
     parser.add_argument("--small", action="store_true", help="a size for the CPU: L = 0.1 m, few realizations")
+    parser.add_argument("--commit", help="the commit measured (default: git rev-parse HEAD, where there is a .git)")
     parser.add_argument("--out", default="scaleout.json")
     args = parser.parse_args()
     import distributed  # imported here: the clusters' machine may carry Dask apart from the package
@@ -99,7 +103,7 @@ def main() -> None:
 
     with multiprocessing.get_context("spawn").Pool(1) as pool:
         local = pool.apply(in_process, (args.device, args.small, args.seconds))
-    record = {"environment": {**local["environment"], "distributed": distributed.__version__, "commit": commit()},
+    record = {"environment": {**local["environment"], "distributed": distributed.__version__, "commit": args.commit or commit()},
               "workers": args.workers, "workloads": {}}
     for name, run in local["runs"].items():
         record["workloads"][name] = {"spec": run["spec"], "in_process_s": run["wall_s"]}
