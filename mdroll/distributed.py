@@ -180,7 +180,7 @@ class DaskRunner:
                 bar.close()
             parts = self._reduce_on_workers(futures, run)
         except (OSError, TimeoutError, concurrent.futures.CancelledError) as exc:
-            if self.client.status == "running" and not isinstance(exc, concurrent.futures.CancelledError):
+            if self.client.status == "running":  # the scheduler is there: not a lost connection
                 raise
             kept = f"; the finished units are kept in {checkpoint} (resume from them)" if checkpoint else ""
             raise SchedulerLost(f"lost the Dask scheduler at {self.client.scheduler.address} "
