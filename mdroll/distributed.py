@@ -41,7 +41,7 @@ from .devices import cpu_cores, resolve_device
 from .ensemble.batching import default_batch
 from .ensemble.result import EnsembleResult
 from .ensemble.spec import EnsembleSpec
-from .errors import MdrollError, ParameterError
+from .errors import ParameterError, SchedulerLost
 
 #: Work units per worker at most: two give a worker's second unit to a faster or surviving worker
 #: and lose at most half a worker's share when it dies, while the per-unit cost stays small
@@ -111,10 +111,6 @@ def merge_results(*results: EnsembleResult) -> EnsembleResult:
     """One result of several of one spec (:meth:`EnsembleResult.merge`; one result is itself):
     the reduction's task on the workers, and its last step on the client."""
     return results[0] if len(results) == 1 else EnsembleResult.merge(list(results))
-
-
-class SchedulerLost(MdrollError):
-    """The client lost its Dask scheduler in the middle of a run."""
 
 
 class DaskRunner:

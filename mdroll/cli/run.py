@@ -10,7 +10,7 @@ from pathlib import Path
 
 from .. import plotting
 from ..devices import resolve_device
-from ..distributed import SchedulerLost, saved_specs
+from ..distributed import saved_specs
 from ..forces.registry import ALGORITHMS, DEFAULT_ALGORITHMS, REGISTRY
 from ..ensemble.batching import check_count_fits, check_run_fits, realization_bytes
 from ..ensemble.checkpoint import CHECKPOINT, read_checkpoint
@@ -18,7 +18,7 @@ from ..ensemble.pipeline import run_ensemble
 from ..ensemble.result import result_summary
 from ..ensemble.spec import EnsembleSpec
 from ..ensemble.validity import parameter_concerns, result_concerns
-from ..errors import UsageError
+from ..errors import SchedulerLost, UsageError
 from ..files import atomic_write
 from ..railway.report import write_band_outputs
 from .common import (build_params, cluster_options, cluster_runner, format_value, lock, output_dir, output_options,
