@@ -8,7 +8,8 @@ import math
 
 import numpy as np
 
-from .params import ParameterError, Params
+from .errors import ParameterError
+from .params import Params
 
 
 def check_params(params) -> Params:

@@ -36,7 +36,7 @@ from tqdm.auto import tqdm
 
 from .ensemble.result import EnsembleResult
 from .ensemble.spec import EnsembleSpec
-from .params import ParameterError
+from .errors import ParameterError
 
 # Dask's ``distributed`` is an optional dependency (the ``distributed`` extra): the functions that
 # need it import it, so that this module imports without it.

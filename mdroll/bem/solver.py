@@ -26,8 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..devices import DeviceError
-from ..params import ParameterError
+from ..errors import DeviceError, ParameterError
 from ..physics import hertz_indentation
 from .halfspace import HalfSpace
 

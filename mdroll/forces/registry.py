@@ -44,7 +44,7 @@ algorithm with the direct sum (tests/test_force.py) run it too.
 from __future__ import annotations
 
 from ..kernels.common import MAX_CLOSED_FORM_OFFSET
-from ..params import ParameterError
+from ..errors import ParameterError
 from .algorithm import BOUNDS, LIFTS, PREFIX, TREE, Algorithm, BenchVariant, Complexity
 from .direct import direct_coupled, direct_launch
 from .edge import edge_coupled, edge_launch
