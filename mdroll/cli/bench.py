@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-import json
-
 from ..bench import format_table, plot_study, run_study
+from ..experiments import write_json
 from .common import output_dir, output_options, progress_printer, size_options
 
 
@@ -18,7 +17,7 @@ def add_parser(sub) -> None:
 def execute(args) -> int:
     out = output_dir(args)
     record = run_study(args.size or "quick", devices=args.device, progress=progress_printer(args))
-    (out / "bench.json").write_text(json.dumps(record, indent=2))
+    write_json(out / "bench.json", record, indent=2)
     plot_study(record, out / "bench.png")
     print(format_table(record))
     print(f"wrote {out}/: bench.json bench.png")

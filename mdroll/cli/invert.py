@@ -10,6 +10,7 @@ from pathlib import Path
 
 from ..devices import resolve_device
 from ..errors import UsageError
+from ..experiments import write_json
 from ..files import atomic_write
 from .common import cluster_runner, output_dir, output_options, progress_printer, reading, size_options
 
@@ -84,7 +85,7 @@ def execute(args) -> int:
 
 def _report(args) -> int:
     """``--report JSON ...``: the Markdown tables of round-trip records."""
-    from ..inverse.roundtrip import merge_records, report
+    from ..inverse.roundtrip_report import merge_records, report
 
     records = []
     for name in args.report:
@@ -98,7 +99,8 @@ def _report(args) -> int:
 
 def _round_trip(args) -> int:
     """``--round-trip``: spectra simulated at known parameters, fitted, and the estimates compared."""
-    from ..inverse.roundtrip import format_table, plot_study, run_study
+    from ..inverse.roundtrip import run_study
+    from ..inverse.roundtrip_report import format_table, plot_study
 
     if args.spectrum:
         raise UsageError("--round-trip simulates its own spectra: give no SPECTRUM")
@@ -118,8 +120,7 @@ def _round_trip(args) -> int:
         written.insert(1, "roundtrip.png")
     with atomic_write(out / "roundtrip.md", "w") as file:
         file.write(format_table(record) + "\n")
-    with atomic_write(out / "roundtrip.json", "w") as file:
-        json.dump(record, file, indent=1)
+    write_json(out / "roundtrip.json", record)
     print(format_table(record))
     print(f"{record['seconds']:.0f} s; wrote {out}/: {' '.join(written)}")
     return 0

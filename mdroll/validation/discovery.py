@@ -190,9 +190,7 @@ def run_checks(size: str | ValidationSize = "quick", only=None, seed: int = 0, d
     if providers is None:
         providers = select(only or ())
     if isinstance(size, str):
-        if size not in SIZES:
-            raise ParameterError(f"size = {size!r} is not allowed: choose one of {sorted(SIZES)}")
-        size = SIZES[size]
+        size = SIZES.rung(size)
     ctx = Context(size, seed, EnsembleSource(device, runner, cache, progress))
     results = []
     for provider in providers:
