@@ -18,7 +18,8 @@ pytest.importorskip("distributed")
 
 from distributed import Client, LocalCluster  # noqa: E402
 
-from mdroll import EnsembleSpec, Params, ParameterError, run_specs  # noqa: E402
+from mdroll import EnsembleSpec, Params, run_specs  # noqa: E402
+from mdroll.errors import ParameterError  # noqa: E402
 from mdroll.distributed import DaskRunner, default_unit_size, local_cluster, work_units  # noqa: E402
 
 FIELDS = ("force_psd", "force_psd_stderr", "accel_psd", "accel_psd_stderr")

@@ -8,7 +8,8 @@ import json
 
 import pytest
 
-from mdroll import ParameterError, __version__
+from mdroll.errors import ParameterError
+from mdroll import __version__
 from mdroll.experiments import (SIZES, Figure, Ladder, Registry, markdown_table, provenance, text_table,
                                 write_figure, write_figures, write_json)
 

@@ -17,7 +17,8 @@ from reference import psd, to_numpy
 from mdroll import EnsembleSpec, Params, contact_force, physics, rough_lines
 from mdroll.forces import registry as algorithms
 from mdroll.ensemble.measure import band_sum, paired_ratio, period_bands
-from mdroll.validation import Band, Check, CheckResult, EnsembleSource, PredictionError
+from mdroll.errors import PredictionError
+from mdroll.validation import Band, Check, CheckResult, EnsembleSource
 from mdroll.validation.checks import SIZES, Context, check_exact_algorithms
 from mdroll.validation.references import edge_quadratic_force
 from mdroll.validation.report import format_table, slug

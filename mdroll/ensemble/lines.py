@@ -8,7 +8,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..devices import is_cuda, resolve_device, warp
-from ..params import ParameterError, Params
+from ..errors import ParameterError
+from ..params import Params
 from .. import buffers
 from .batching import check_count_fits
 from ..fft import irfft_rows

@@ -16,7 +16,8 @@ import json
 from collections.abc import Iterable
 from dataclasses import dataclass
 
-from ..params import ParameterError, Params
+from ..errors import ParameterError
+from ..params import Params
 from ..forces.registry import default_algorithm
 
 

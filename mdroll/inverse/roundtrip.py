@@ -21,7 +21,8 @@ import numpy as np
 
 from ..ensemble.spec import EnsembleSpec, run_specs
 from ..experiments import Ladder, provenance
-from ..params import ParameterError, Params
+from ..errors import ParameterError
+from ..params import Params
 from ..physics import TWO_PI, effective_modulus
 from .correction import iterate, simulation_params
 from .fit import fit, refit

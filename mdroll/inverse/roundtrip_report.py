@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..experiments import Figure, markdown_table, write_figure
-from ..params import ParameterError
+from ..errors import ParameterError
 from .roundtrip import TARGETS, format_error, summarize
 
 

@@ -43,8 +43,9 @@ from importlib.metadata import entry_points
 
 from ..ensemble.spec import EnsembleSpec
 from ..files import read_toml
-from ..params import ParameterError, Params
-from .api import Band, Check, CheckResult, PredictionError
+from ..errors import ParameterError, PredictionError
+from ..params import Params
+from .api import Band, Check, CheckResult
 from .checks import CHECKS, SIZES, Context, ValidationSize
 from .ensembles import EnsembleSource
 
