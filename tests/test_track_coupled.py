@@ -71,3 +71,14 @@ def test_small_roughness_is_the_linear_chain(device):
     linear = blocked.force_psd[1:] / np.abs(params.k_contact * alpha) ** 2
     error = band_error(f, coupled.force_psd[1:], linear, params.v0)
     assert np.max(np.abs(error)) < 0.5, error
+
+
+def test_cli_track_settings(cli, one_line_error, tmp_path):
+    proc = cli("run", "--mode", "coupled", "--set", "L=0.04", "--set", "dx=2e-5", "--realizations", "1",
+               "--set", "track=ballasted-soft-pad", "--set", "track.pad_loss=0.3", "--device", "cpu",
+               "--no-progress", "--out", str(tmp_path / "run"))
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "run" / "spectra.npz").is_file()
+    for setting, needle in [("track.bogus=1", "track.bogus"), ("wheel=nope", "wheel = 'nope'"),
+                            ("track.pad_loss=-1", "track.pad_loss")]:
+        one_line_error(cli("run", "--mode", "coupled", "--set", setting, "--out", str(tmp_path / "bad")), needle)
