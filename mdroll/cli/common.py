@@ -17,6 +17,8 @@ from pathlib import Path
 
 from ..errors import MdrollError, UsageError
 from ..files import read_toml
+from ..track import Track
+from ..wheel import Wheel
 from ..params import TEXT_FIELDS, Params
 
 PARAM_NAMES = tuple(f.name for f in dataclasses.fields(Params))
@@ -142,12 +144,41 @@ def build_params(args, base: dict | None = None) -> Params:
         if "=" not in item:
             raise UsageError(f"--set expects key=value, got {item!r}")
         key, text = item.split("=", 1)
+        if _structure(key.strip()):
+            continue  # the track's and the wheel's: :func:`build_structures`
         values[key.strip()] = _parse_value(key.strip(), text.strip())
     if getattr(args, "realizations", None) is not None:
         if args.realizations < 1:
             raise UsageError(f"--realizations {args.realizations}: the number of realizations must be at least 1")
         values["n_real"] = args.realizations
     return Params(**values)
+
+
+def _structure(key: str) -> str | None:
+    """``"track"`` or ``"wheel"`` for a ``--set`` key of theirs (``track=PRESET``, ``track.KEY``), else None."""
+    head = key.split(".", 1)[0]
+    return head if head in ("track", "wheel") else None
+
+
+def build_structures(args):
+    """The run's (track, wheel) from ``--set track=PRESET``, ``track.KEY=VALUE``, ``wheel=PRESET``
+    and ``wheel.KEY=VALUE`` (None where none is given): :meth:`mdroll.track.Track.from_settings`;
+    the wheel's preset first, then its numeric keys."""
+    items = [item.split("=", 1) for item in getattr(args, "set", None) or [] if "=" in item]
+    track_items = [f"{k.strip()}={v.strip()}" for k, v in items if _structure(k.strip()) == "track"]
+    wheel_items = [(k.strip(), v.strip()) for k, v in items if _structure(k.strip()) == "wheel"]
+    track = Track.from_settings(track_items) if track_items else None
+    wheel = None
+    if wheel_items:
+        wheel = Wheel()
+        for key, text in wheel_items:
+            if key == "wheel":
+                wheel = Wheel.preset(text)
+        for key, text in wheel_items:
+            if key != "wheel":
+                name = key.removeprefix("wheel.")
+                wheel = wheel.with_values(**{name: text if name == "kind" else _parse_value(key, text)})
+    return track, wheel
 
 
 def format_value(value) -> str:

@@ -21,7 +21,7 @@ from ..ensemble.validity import parameter_concerns, result_concerns
 from ..errors import SchedulerLost, UsageError
 from ..files import atomic_write
 from ..railway.report import write_band_outputs
-from .common import (build_params, cluster_options, cluster_runner, format_value, lock, output_dir, output_options,
+from .common import (build_params, build_structures, cluster_options, cluster_runner, format_value, lock, output_dir, output_options,
                      param_options)
 
 #: What ``run`` and ``merge`` write; ``--force`` removes the old ones first, so that a finished
@@ -87,9 +87,10 @@ def execute(args) -> int:
     check_run_fits(params, device, memory)
     if not args.resume:
         out = output_dir(args, clear=RUN_OUTPUTS + (CHECKPOINT,))
+    track, wheel = build_structures(args)
     result = run_ensemble(params, realizations=realizations, device=device, batch=args.batch,
                           progress=not args.no_progress, checkpoint=out / CHECKPOINT, resume=bool(args.resume),
-                          memory_limit=memory, **settings)
+                          memory_limit=memory, track=track, wheel=wheel, **settings)
     write_outputs(result, out)
     return 0
 

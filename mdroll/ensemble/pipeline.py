@@ -9,6 +9,7 @@ the result (:mod:`.result`). Here: the batch loop, its stage clock and the progr
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 import threading
 import time
@@ -30,7 +31,7 @@ from ..forces.registry import algorithm_entry, coupled_entry, default_algorithm
 from ..forces.steps import BOUNDARIES
 from .batching import check_batch_fits, check_run_fits, default_batch
 from .checkpoint import RunTotals
-from .coupled import coupled_series
+from .coupled import contact_compliance, coupled_series
 from .lines import check_seed, realization_indices, rough_lines
 from ..roughness.line_grid import from_params, line_rms
 from .result import EnsembleResult
@@ -73,6 +74,8 @@ def run_ensemble(
     roughness=None,
     integrator: str = "semi-implicit",
     threads: int | None = None,
+    track=None,
+    wheel=None,
 ) -> EnsembleResult:
     """Run an ensemble and return its averaged force and acceleration spectra.
 
@@ -139,6 +142,13 @@ def run_ensemble(
     roughness : RoughnessSpectrum or None
     integrator : str
     threads : int or None
+    track, wheel : mdroll.track.Track, mdroll.wheel.Wheel or None
+        The rail under the wheel and the wheel (default: the rigid ones, eq 13). Coupled mode
+        only: the contact point then moves with the rail's fitted state space (the wheel
+        standing above a sleeper) and a modal wheel's modes
+        (:func:`mdroll.ensemble.coupled.contact_compliance`); the roughness moves under a
+        stationary wheel. The wheel and rail vibrations are linear in the force:
+        :func:`mdroll.ensemble.coupled.vibration_psd`.
 
     Returns
     -------
@@ -158,6 +168,10 @@ def run_ensemble(
                              f"response is {INTEGRATORS[0]!r}; use mode = 'coupled'")
     (algorithm_entry if mode == "decoupled" else coupled_entry)(algorithm)
     check_choice("boundary", boundary, BOUNDARIES)
+    compliance = contact_compliance(track, wheel)
+    if mode == "decoupled" and compliance[0] is not None:
+        raise ParameterError("track and wheel other than rigid are not allowed with mode = 'decoupled': "
+                             "use mode = 'coupled' (the frequency-domain chain is mdroll.track.linear_chain)")
     seed = check_seed(seed)
     indices = realization_indices(params.n_real if realizations is None else realizations)
     leaf_size = check_integer("leaf_size", leaf_size, 1, "springs")
@@ -175,6 +189,8 @@ def run_ensemble(
            "mode": mode, "boundary": boundary, "window": window, "leaf_size": leaf_size}
     if integrator != INTEGRATORS[0]:
         key["integrator"] = integrator
+    if compliance[0] is not None:
+        key["track"], key["wheel"] = (dataclasses.asdict(x) if x else None for x in (track, wheel))
     if roughness is None and params.roughness != "powerlaw":
         roughness = from_params(params)  # read (a table file) once, not per batch
     if roughness is not None:
@@ -212,7 +228,8 @@ def run_ensemble(
             with serial:
                 force, accel = clock("response", lambda: coupled_series(prepared, params, algorithm, device,
                                                                         force_offset=params.F_N,
-                                                                        integrator=integrator))
+                                                                        integrator=integrator,
+                                                                        compliance=compliance))
         sums = clock("response", lambda: series_sums(force, params, device, decoupled))
         moments = clock("spectra", lambda: psd_moments_of_batch(force, accel, sums, params, device, window))
         return prepared.steps, sums, moments

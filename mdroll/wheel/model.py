@@ -22,8 +22,13 @@ import numpy as np
 
 from mdroll.errors import ParameterError
 from mdroll.physics import TWO_PI
+from mdroll.statespace import ModalForm
 
 KINDS = ("rigid", "modal")
+
+#: Frequency (Hz) at which the modal form's viscous suspension damping equals the hysteretic
+#: loss (:meth:`Wheel.modal_form`).
+SUSPENSION_MATCH_HZ = 50.0
 
 #: Radial modes (frequency Hz, modal mass kg at the contact, damping ratio) standing for a 920 mm
 #: wheel: modes with one nodal circle and n = 2..6 nodal diameters between 2 and 5 kHz, the
@@ -114,3 +119,19 @@ class Wheel:
             w_n = TWO_PI * f_n
             alpha = alpha + 1.0 / (m_n * (w_n**2 - omega**2 + 2j * zeta * w_n * omega))
         return alpha
+
+    def modal_form(self) -> ModalForm:
+        """The modal wheel's receptance as a modal state space: its modes exactly, and the
+        primary suspension with the viscous damping c = eta_s k_s / omega_m that equals its
+        hysteretic loss at omega_m = 2 pi :data:`SUSPENSION_MATCH_HZ` (a hysteretic loss is not
+        causal; matched at the lower edge of the band the coupled dynamics resolves, it
+        overdamps nothing below it and the suspension's share of alpha_W falls as omega^-4 above
+        it). The rigid wheel is no state space (its mass is stepped by the coupled dynamics):
+        ParameterError."""
+        if self.kind == "rigid":
+            raise ParameterError("wheel.kind = 'rigid' has no modal form: its mass is the coupled dynamics' own")
+        modes = np.asarray(self.modes, dtype=np.float64).reshape(-1, 3)
+        f_s = np.sqrt(self.suspension_stiffness / self.mass) / TWO_PI
+        zeta_s = 0.5 * self.suspension_loss * f_s / SUSPENSION_MATCH_HZ
+        return ModalForm.oscillators(np.concatenate([[f_s], modes[:, 0]]), np.concatenate([[self.mass], modes[:, 1]]),
+                                     np.concatenate([[zeta_s], modes[:, 2]]))

@@ -1,0 +1,219 @@
+"""Receptances as state-space systems: a modal form (poles and residues), its rational fit by
+vector fitting with passive residues, and its exact discretization for a constant time step.
+
+numpy and scipy only.
+
+The modal form of a receptance (displacement per force, m/N; time dependence ``exp(i omega t)``,
+``s = i omega``) is::
+
+    H(s) = sum_k [ r_k / (s - p_k) + conj(r_k) / (s - conj(p_k)) ],
+
+one complex state ``q_k`` per term, ``q_k' = p_k q_k + r_k u``, output ``y = 2 Re sum_k q_k``
+(a real pole p_k carries half its residue, r_k / 2). Every p_k has Re p_k < 0: it is stable
+by construction.
+
+Passive where the grid reaches: a receptance is passive where its mobility ``s H(s)`` is positive
+real, ``Im H(i omega) <= 0`` for omega > 0. With the poles fixed, H is linear in the residues,
+so :func:`passive_residues` fits them by least squares and, where ``Im H > 0`` somewhere on a
+grid from 0.001 Hz to 10 MHz, again with ``Im H = 0`` imposed at the worst points, until the
+grid holds no violation or the rounds are spent. Passivity is thus enforced, not guaranteed:
+:meth:`ModalForm.passivity_margin` states what is left (docs/track.md, "State space").
+
+Vector fitting (Gustavsen & Semlyen 1999, "Rational approximation of frequency domain responses
+by vector fitting", IEEE Trans. Power Delivery 14) relocates the poles: starting poles spread
+over the band, each iteration solves the linear least-squares problem
+``(sum c_k phi_k + d) - h sigma = h`` with ``sigma = 1 + sum c~_k phi_k``, and the zeros of sigma
+become the next poles (unstable ones are reflected into the left half-plane).
+
+Exact discretization (zero-order hold: the force constant over a step of length dt)::
+
+    q_k[n+1] = phi_k q_k[n] + gamma_k u[n],   phi_k = exp(p_k dt),
+    gamma_k = r_k (exp(p_k dt) - 1) / p_k,
+
+exact for a force held over the step, whatever p_k dt; its transfer function is
+``H_d(z) = 2 Re``-pair sum of ``gamma_k / (z - phi_k)`` at ``z = exp(i omega dt)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mdroll.physics import TWO_PI
+
+#: Angular frequencies (rad/s) where :func:`passive_residues` constrains Im H <= 0 first: 0.01 Hz
+#: to 10 MHz, 100 a decade.
+PASSIVITY_GRID = TWO_PI * np.geomspace(1e-3, 1e7, 1001)
+#: Largest ``Im H / |H|`` that :func:`passive_residues` leaves: rounding, not a loss of passivity.
+PASSIVITY_TOLERANCE = 1e-10
+
+
+@dataclass(frozen=True)
+class ModalForm:
+    """A receptance (m/N) as modal poles and residues (module docstring): ``poles`` (rad/s,
+    complex, Re < 0, one of each conjugate pair: Im >= 0) and ``residues`` (m/(N s), complex;
+    a real pole's is half its residue). ``error_db``: the fit's largest error over its check
+    band (dB, :func:`error_db`), or 0 for an exact form."""
+
+    poles: np.ndarray
+    residues: np.ndarray
+    error_db: float = 0.0
+
+    @property
+    def order(self) -> int:
+        """Number of complex states (modes)."""
+        return len(self.poles)
+
+    def response(self, f):
+        """H(i omega) (m/N, complex) at frequencies ``f`` (Hz)."""
+        s = 1j * TWO_PI * np.asarray(f, dtype=np.float64)[..., None]
+        p, r = self.poles, self.residues
+        return np.sum(r / (s - p) + np.conj(r) / (s - np.conj(p)), axis=-1)
+
+    def passivity_margin(self, f=None) -> float:
+        """The largest ``Im H(i omega) / |H(i omega)|`` over ``f`` (Hz; default 0.001 Hz to
+        10 MHz, 100 000 points): at most a rounding error above zero for a passive form."""
+        f = np.geomspace(1e-3, 1e7, 100_000) if f is None else f
+        h = self.response(f)
+        return float(np.max(h.imag / np.abs(h)))
+
+    def discretize(self, dt: float):
+        """(phi, gamma), complex arrays of the zero-order-hold step of length ``dt`` (s): module
+        docstring."""
+        phi = np.exp(self.poles * dt)
+        return phi, self.residues * np.expm1(self.poles * dt) / self.poles
+
+    def discrete_response(self, f, dt: float):
+        """Transfer function (m/N) of :meth:`discretize`'s step at ``z = exp(i omega dt)``, the
+        response of the stepped system to a force sampled every dt and held over the step
+        (the output one step behind the force, as the coupled step uses it)."""
+        phi, gamma = self.discretize(dt)
+        z = np.exp(1j * TWO_PI * np.asarray(f, dtype=np.float64)[..., None] * dt)
+        return np.sum(gamma / (z - phi) + np.conj(gamma) / (z - np.conj(phi)), axis=-1)
+
+    @staticmethod
+    def oscillators(frequency, mass, damping) -> "ModalForm":
+        """The exact modal form of a sum of oscillators ``1 / (m (omega_n^2 - omega^2 + 2 i zeta
+        omega_n omega))`` (``frequency`` Hz, ``mass`` kg, ``damping`` zeta < 1, arrays)."""
+        w = TWO_PI * np.asarray(frequency, dtype=np.float64)
+        zeta = np.asarray(damping, dtype=np.float64)
+        wd = w * np.sqrt(1.0 - zeta**2)
+        poles = -zeta * w + 1j * wd
+        return ModalForm(poles, 1.0 / (2j * np.asarray(mass, dtype=np.float64) * wd))
+
+    def __add__(self, other: "ModalForm") -> "ModalForm":
+        return ModalForm(np.concatenate([self.poles, other.poles]), np.concatenate([self.residues, other.residues]),
+                         max(self.error_db, other.error_db))
+
+
+def error_db(fitted, reference):
+    """The complex error of a fit in dB, ``20 log10(1 + |fit - ref| / |ref|)``: a bound on its
+    magnitude error (in dB) that also counts the phase."""
+    return 20.0 * np.log10(1.0 + np.abs(np.asarray(fitted) - reference) / np.abs(reference))
+
+
+def _bases(s, poles):
+    """Real-coefficient basis functions of the pole set (one column per real unknown): for a
+    complex pair 1/(s-p) + 1/(s-p*) and i/(s-p) - i/(s-p*); for a real pole 1/(s-p)."""
+    cols = []
+    for p in poles:
+        if p.imag == 0:
+            cols.append(1.0 / (s - p))
+        else:
+            cols += [1.0 / (s - p) + 1.0 / (s - np.conj(p)), 1j / (s - p) - 1j / (s - np.conj(p))]
+    return np.stack(cols, axis=1)
+
+
+def _relocate(s, h, weight, poles):
+    """One iteration of relaxed vector fitting (Gustavsen 2006, IEEE Trans. Power Delivery 21):
+    sigma = d~ + sum c~_k phi_k with the non-triviality row ``Re sum_s sigma(s) = len(s)``; the
+    zeros of sigma are the new poles, unstable ones reflected into the left half-plane."""
+    phi = _bases(s, poles)
+    n = phi.shape[1]
+    sigma = np.concatenate([np.ones((len(s), 1)), phi], axis=1)
+    lhs = np.concatenate([phi, np.ones((len(s), 1)), -h[:, None] * sigma], axis=1) * weight[:, None]
+    a = np.concatenate([lhs.real, lhs.imag])
+    relax = np.concatenate([np.zeros(n + 1), np.sum(sigma.real, axis=0)]) * np.linalg.norm(h * weight) / len(s)
+    a = np.vstack([a, relax])
+    b = np.zeros(len(a))
+    b[-1] = np.linalg.norm(h * weight)
+    scale = np.linalg.norm(a, axis=0)
+    sol = np.linalg.lstsq(a / scale, b, rcond=None)[0] / scale
+    d_sigma, c = sol[n + 1], sol[n + 2:]
+    # state matrix of sigma / d~ - 1 in real form, minus b c^T / d~: its eigenvalues are sigma's zeros
+    A = np.zeros((n, n))
+    bvec = np.zeros(n)
+    i = 0
+    for p in poles:
+        if p.imag == 0:
+            A[i, i], bvec[i] = p.real, 1.0
+            i += 1
+        else:
+            A[i:i + 2, i:i + 2] = [[p.real, p.imag], [-p.imag, p.real]]
+            bvec[i] = 2.0
+            i += 2
+    zeros = np.linalg.eigvals(A - np.outer(bvec, c) / d_sigma)
+    zeros = np.where(zeros.real > 0, -np.conj(zeros), zeros)  # reflect unstable zeros
+    return np.sort_complex(zeros[zeros.imag >= 0])
+
+
+def passive_residues(s, h, weight, poles, rounds: int):
+    """Residues (module docstring's convention) of the least-squares fit of h(s) at the fixed
+    ``poles`` (stable, Im >= 0), made passive: where ``Im H / |H| > PASSIVITY_TOLERANCE`` on
+    :data:`PASSIVITY_GRID` (and three points between each two), the fit is repeated with
+    ``Im H = 0`` imposed at the largest violation of each interval of violations, until none is
+    left or ``rounds`` times: what remains is stated by :meth:`ModalForm.passivity_margin`. Each equality-constrained least
+    squares is solved in the constraints' null space (an SVD), which stays well conditioned
+    where the partial fractions' basis is not."""
+    basis = _bases(s, poles) * weight[:, None]
+    A = np.concatenate([basis.real, basis.imag])
+    b = np.concatenate([(h * weight).real, (h * weight).imag])
+    scale = np.linalg.norm(A, axis=0)
+    A = A / scale
+    dense = np.geomspace(PASSIVITY_GRID[0], PASSIVITY_GRID[-1], 4 * len(PASSIVITY_GRID)) / TWO_PI
+    dense_basis = _bases(1j * TWO_PI * dense, poles) / scale
+    rows = dense_basis.imag / np.linalg.norm(dense_basis.imag, axis=1, keepdims=True)
+    active = np.zeros(0, dtype=int)
+    x = np.linalg.lstsq(A, b, rcond=None)[0]
+    for _ in range(rounds):
+        response = dense_basis @ x
+        violation = response.imag / np.abs(response)
+        bad = violation > PASSIVITY_TOLERANCE
+        if not bad.any():
+            break
+        # the largest violation of each run of violated points
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], bad.astype(int), [0]])))
+        peaks = [start + int(np.argmax(violation[start:stop])) for start, stop in zip(edges[::2], edges[1::2])]
+        active = np.union1d(active, peaks)
+        _, sv, vt = np.linalg.svd(rows[active])
+        null = vt[np.sum(sv > 1e-12 * sv[0]):].T
+        x = null @ np.linalg.lstsq(A @ null, b, rcond=None)[0]
+    x = x / scale
+    residues, i = [], 0
+    for p in poles:
+        if p.imag == 0:
+            residues.append(0.5 * x[i])
+            i += 1
+        else:
+            residues.append(x[i] + 1j * x[i + 1])
+            i += 2
+    return np.array(residues, dtype=complex)
+
+
+def vector_fit(f, h, order: int, f_lo: float, f_hi: float, iterations: int = 20, passivity_rounds: int = 0):
+    """A stable :class:`ModalForm` of ``order`` pole pairs fitted to the receptance
+    ``h`` (m/N, complex) sampled at ``f`` (Hz): vector fitting with relative weights 1/|h|,
+    starting poles log-spaced over [f_lo, f_hi] Hz with damping 1 %, then
+    :func:`passive_residues` with ``passivity_rounds`` rounds of constraints (0: the plain
+    least squares; each round costs accuracy, docs/track.md, "State space"). ``error_db`` is the largest :func:`error_db` over the samples."""
+    f = np.asarray(f, dtype=np.float64)
+    h = np.asarray(h, dtype=complex)
+    s = 1j * TWO_PI * f
+    weight = 1.0 / np.abs(h)
+    w = TWO_PI * np.geomspace(f_lo, f_hi, order)
+    poles = -0.01 * w + 1j * w
+    for _ in range(iterations):
+        poles = _relocate(s, h, weight, poles)
+    form = ModalForm(poles, passive_residues(s, h, weight, poles, passivity_rounds))
+    return ModalForm(form.poles, form.residues, float(np.max(error_db(form.response(f), h))))

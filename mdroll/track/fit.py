@@ -1,0 +1,37 @@
+"""The rail's point receptance as a stable, passive modal state space (:mod:`mdroll.statespace`)
+for the coupled time-domain dynamics: a vector fit over :data:`FIT_BAND` with its error stated."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from mdroll.statespace import ModalForm, error_db, vector_fit
+
+from .response import receptance
+
+#: Band of the fit (Hz) and its samples: wider than the band it must hold (:data:`CHECK_BAND`),
+#: so that the fit's edges fall outside it.
+FIT_BAND = (25.0, 8000.0)
+FIT_SAMPLES = 600
+#: Band (Hz) over which the fit's error is stated, and the fit's starting pole pairs and
+#: iterations (docs/track.md, "State space": more pole pairs fit worse, the problem's conditioning).
+CHECK_BAND = (50.0, 5000.0)
+FIT_ORDER = 50
+FIT_ITERATIONS = 6
+
+
+@functools.lru_cache(maxsize=16)
+def rail_modal_form(track, position: str = "sleeper") -> ModalForm:
+    """The modal form of the rail's point receptance (:func:`~mdroll.track.receptance`) where
+    the wheel stands; its ``error_db`` is the largest complex error (dB,
+    :func:`mdroll.statespace.error_db`) over :data:`CHECK_BAND` on a grid of 1000 frequencies.
+    The rigid track has none (an empty form)."""
+    if track.support == "rigid":
+        return ModalForm(np.zeros(0, dtype=complex), np.zeros(0, dtype=complex))
+    f = np.geomspace(*FIT_BAND, FIT_SAMPLES)
+    form = vector_fit(f, receptance(track, f, position), FIT_ORDER, *FIT_BAND, iterations=FIT_ITERATIONS)
+    check = np.geomspace(*CHECK_BAND, 1000)
+    error = float(np.max(error_db(form.response(check), receptance(track, check, position))))
+    return ModalForm(form.poles, form.residues, error)

@@ -1,0 +1,85 @@
+"""mdroll.statespace: vector fitting against known rational functions, passivity, the exact
+zero-order-hold step against scipy, the wheel's modal form against its receptance, and the
+rail's fits of every preset against the frequency-domain receptance."""
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from mdroll import ParameterError, Params
+from mdroll.physics import TWO_PI
+from mdroll.statespace import ModalForm, error_db, vector_fit
+from mdroll.track import Track, receptance
+from mdroll.track.fit import CHECK_BAND, rail_modal_form
+from mdroll.wheel import Wheel
+
+
+def test_vector_fit_recovers_a_rational_receptance():
+    rng = np.random.default_rng(3)
+    exact = ModalForm.oscillators(np.geomspace(30, 6000, 8), rng.uniform(1, 100, 8), rng.uniform(0.01, 0.4, 8))
+    f = np.geomspace(5, 20000, 400)
+    fit = vector_fit(f, exact.response(f), 8, 5, 20000, iterations=6)
+    assert fit.error_db < 1e-8
+    np.testing.assert_allclose(np.sort_complex(fit.poles), np.sort_complex(exact.poles), rtol=1e-7)
+
+
+def test_zero_order_hold_step_equals_scipy():
+    # one mode with a complex residue, as the rail's fit has, against scipy's ZOH of its (A, B, C)
+    form = ModalForm(np.array([-300.0 + 5000.0j]), np.array([2.0 - 7.0j]))
+    dt = 3e-5
+    p, r = form.poles[0], form.residues[0]
+    num = [2 * r.real, -2 * (r * np.conj(p)).real]
+    den = [1.0, -2 * p.real, abs(p) ** 2]
+    a, b, c, d, _ = signal.cont2discrete(signal.tf2ss(num, den), dt, method="zoh")  # scipy: the reference
+    u = np.random.default_rng(0).standard_normal(200)
+    _, y_ref, _ = signal.dlsim((a, b, c, d, dt), u)
+    phi, gamma = form.discretize(dt)
+    q, y = 0j, []
+    for uk in u:
+        y.append(2 * q.real)
+        q = phi[0] * q + gamma[0] * uk
+    np.testing.assert_allclose(y, y_ref[:, 0], rtol=1e-9, atol=1e-9 * np.max(np.abs(y_ref)))
+    f = np.array([50.0, 800.0, 3000.0])
+    _, h_ref = signal.dfreqresp((a, b, c, d, dt), TWO_PI * f * dt)
+    np.testing.assert_allclose(form.discrete_response(f, dt), h_ref, rtol=1e-9)
+
+
+def test_modal_wheel_is_its_modes_and_a_causal_suspension():
+    wheel = Wheel.preset("standard-920")
+    f = np.geomspace(*CHECK_BAND, 2000)
+    form = wheel.modal_form()
+    assert form.order == 1 + len(wheel.modes)
+    modes = np.asarray(wheel.modes)
+    omega = TWO_PI * f
+    modal_sum = sum(1 / (m * ((TWO_PI * fn) ** 2 - omega**2 + 2j * z * TWO_PI * fn * omega)) for fn, m, z in modes)
+    suspension = ModalForm(form.poles[:1], form.residues[:1]).response(f)
+    np.testing.assert_allclose(form.response(f) - suspension, modal_sum, rtol=1e-9, atol=1e-12 * np.max(np.abs(modal_sum)))
+    # the viscous suspension's change of the chain alpha_W + alpha_R + alpha_C, soft-pad track
+    rail = receptance(Track.preset("ballasted-soft-pad"), f) + 1 / Params().k_contact
+    assert np.max(error_db(form.response(f) + rail, wheel.receptance(f) + rail)) < 0.02
+    with pytest.raises(ParameterError, match="wheel.kind"):
+        Wheel.preset("rigid").modal_form()
+
+
+#: The fits' largest complex error over 50 Hz - 5 kHz (dB), rounded up (docs/track.md, "State space").
+RAIL_FIT_DB = {("ballasted-soft-pad", "sleeper"): 0.35, ("ballasted-soft-pad", "midspan"): 0.3,
+               ("ballasted-stiff-pad", "sleeper"): 0.6, ("slab", "sleeper"): 0.2}
+
+
+@pytest.mark.parametrize("name, position", list(RAIL_FIT_DB))
+def test_rail_fit_is_stable_and_close(name, position):
+    track = Track.preset(name)
+    form = rail_modal_form(track, position)
+    assert np.all(form.poles.real < 0)
+    f = np.geomspace(*CHECK_BAND, 1500)
+    error = np.max(error_db(form.response(f), receptance(track, f, position)))
+    assert error == pytest.approx(form.error_db, abs=0.05)
+    assert error < RAIL_FIT_DB[name, position]
+
+
+def test_oscillators_are_passive():
+    assert Wheel.preset("standard-920").modal_form().passivity_margin() < 1e-12
+
+
+def test_rigid_track_has_no_state():
+    assert rail_modal_form(Track.preset("rigid")).order == 0
