@@ -7,7 +7,7 @@ numpy only; imports :mod:`mdroll.physics` and :mod:`mdroll.params` and nothing a
 from .bands import REF_FORCE, REF_FORCE_MICRO, REF_VELOCITY, band_levels, per_hz_one_sided, third_octave_centres
 from .beam import continuous_decay_rate, continuous_receptance, cut_on_frequencies, support_stiffness
 from .interaction import chain_for_params, contact_filter, linear_chain
-from .model import PRESETS, SOURCES, SUPPORTS, UIC60, Track
+from .parameters import PRESETS, SOURCES, SUPPORTS, UIC60, Track
 from .periodic import discrete_decay_rate, discrete_receptance, floquet_multipliers, pinned_pinned_frequency
 from .response import POSITIONS, decay_rate, iso3095_decay_limit, receptance
 

@@ -3,4 +3,4 @@
 numpy only; imports :mod:`mdroll.physics` and :mod:`mdroll.params` and nothing above.
 """
 
-from .model import KINDS, PRESETS, SOURCES, STANDARD_920_MODES, Wheel
+from .parameters import KINDS, PRESETS, SOURCES, STANDARD_920_MODES, Wheel
