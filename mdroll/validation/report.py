@@ -90,7 +90,9 @@ def write_report(results: list[CheckResult], out, meta: dict) -> list[Path]:
             continue
         fig, ax = plt.subplots(figsize=(6, 4), layout="constrained")
         r.plot(ax)
-        ax.set_title(f"{r.name} ({r.equation}): ratio {r.ratio:.4f}, {'PASS' if r.passed else 'FAIL'}", fontsize=9)
+        measured = (f"ratio {r.ratio:.4f}" if math.isfinite(r.ratio)
+                    else f"measured {r.measured:.4g}, predicted {r.predicted:.4g}")
+        ax.set_title(f"{r.name} ({r.equation}): {measured}, {'PASS' if r.passed else 'FAIL'}", fontsize=9)
         path = out / f"{slug(r.name)}.png"
         with atomic_write(path) as file:
             fig.savefig(file, dpi=110, format="png")
