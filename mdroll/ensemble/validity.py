@@ -15,14 +15,16 @@ flag what can be computed but no longer means what the thesis's model says:
   8.4 MN at omega_0 dt = 1.99).
 - contact lost (F = 0) on more than ``MAX_LOST_FRACTION`` of the steps: the spectra then hold
   the gaps of a wheel off the rail, not the linear response of section 5.1.
-- bins the record and its estimator cannot resolve (:mod:`mdroll.ensemble.resolution`) beyond
-  ``MAX_UNRESOLVED_FRACTION`` of a spectrum: its leakage, not the physics, decides them.
+- bins where the estimator's leakage exceeds the signal (:mod:`mdroll.ensemble.resolution`) beyond
+  ``MAX_UNRESOLVED_FRACTION`` of a spectrum: the leakage, not the physics, decides them (the
+  lowest bins and the main lobe of omega_0, flagged in every record, are not counted).
 """
 
 from __future__ import annotations
 
 from .. import physics
 from ..params import Params
+from .resolution import REASONS
 
 #: The largest h0 / d0 taken as small roughness.
 MAX_H0_OVER_D0 = 0.1
@@ -69,7 +71,7 @@ def result_concerns(result) -> list[str]:
         )
     flags = result.resolution
     for quantity, name in (("accel", "acceleration"), ("force", "force")):
-        mask = flags.mask(quantity)
+        mask = flags.reasons[quantity] == REASONS.index("leakage exceeds the signal")
         if mask.sum() > MAX_UNRESOLVED_FRACTION * mask.size:
             concerns.append(
                 f"{int(mask.sum())} of {mask.size} {name} bins are unresolved ({100 * mask.mean():.3g} %: the "
