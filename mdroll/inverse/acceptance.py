@@ -31,10 +31,12 @@ OWN_TAU = {False: 1.0, True: 1.94}
 MAX_UNRESOLVED = 0.05
 
 
-def acceptance(gof: dict, band: tuple, spectrum) -> dict:
+def acceptance(gof: dict, band: tuple, spectrum, discrepancy: dict | None = None) -> dict:
     """The gate of the module docstring for a fit with goodness of fit ``gof``
     (:func:`~mdroll.inverse.likelihood.goodness_of_fit`) over ``band`` (rad/s) of ``spectrum``:
-    ``{"accepted", "level", "reasons", "notes", "misfit_p", "unresolved_in_band"}``."""
+    ``{"accepted", "level", "reasons", "notes", "misfit_p", "unresolved_in_band"}``. With a model
+    ``discrepancy`` held (:mod:`.discrepancy`, a table's fit) a smooth misfit is what it allows
+    for: the block test is then a note, not a reason."""
     reasons, notes = [], []
     taus = {int(k): v for k, v in gof.get("tau_by_block", {}).items()}
     misfit_p = None
@@ -45,7 +47,7 @@ def acceptance(gof: dict, band: tuple, spectrum) -> dict:
         statistic = (blocks - 1) * taus[block] / own
         misfit_p = float(scipy.stats.chi2.sf(statistic, blocks - 1))
         if misfit_p < LEVEL:
-            reasons.append(f"the model misses structure over many bins: the residuals' means over {block} bins vary "
+            (notes if discrepancy else reasons).append(f"the model misses structure over many bins: the residuals' means over {block} bins vary "
                            f"{taus[block] / own:.3g}x what the estimator allows (p = {misfit_p:.2g} < {LEVEL:g})")
     unresolved = {"bins": 0, "of_bins": 0}
     if spectrum.unresolved is not None:

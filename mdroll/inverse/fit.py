@@ -109,7 +109,7 @@ def fit(spectrum: Spectrum, known: dict | None = None, free=None, band=None, pas
         if sigma:
             result = with_discrepancy(result, sigma)
     result = with_fill_check(spectrum, result, bin, fill_check, refit=fit)
-    result.acceptance = acceptance(result.gof, result.band, spectrum)
+    result.acceptance = acceptance(result.gof, result.band, spectrum, result.discrepancy)
     return result
 
 
