@@ -25,7 +25,7 @@ import numpy as np
 from mdroll import EnsembleSpec, Params, physics
 from mdroll.validation import Band, Check
 
-SPEC = EnsembleSpec(Params(L=0.03, dx=10e-6), seed=3, realizations=4, boundary="periodic")
+SPEC = EnsembleSpec(Params(L=0.03, dx=10e-6), seed=3, realizations=4, boundary="periodic", window=False)
 HIGH = Band(1, 8, whole_periods=True)
 
 

@@ -140,10 +140,10 @@ COMMANDS = {
     "CUDA_VISIBLE_DEVICES=0 dask worker tcp://head:8786 --nthreads 1": ("options", "dask worker"),
     "CUDA_VISIBLE_DEVICES=1 dask worker tcp://head:8786 --nthreads 1": ("options", "dask worker"),
     "mdroll run --scheduler tcp://head:8786 --realizations 3000": ("options", "mdroll run"),
-    "mdroll run --set L=0.5 --realizations 16 --window --out run1":
-        ("run", "mdroll run --set L=0.1 --realizations 4 --window --out run1 --device cpu --no-progress"
-                " && mdroll invert run1 --window --known m=500 --known R=0.5 --correction none --out inv1", "tmp"),
-    "mdroll invert run1 --window --known m=500 --known R=0.5 --out inv1": ("options", "mdroll invert"),
+    "mdroll run --set L=0.5 --realizations 16 --out run1":
+        ("run", "mdroll run --set L=0.3 --realizations 8 --seed 4 --out run1 --device cpu --no-progress"
+                " && mdroll invert run1 --known m=500 --known R=0.5 --correction none --no-profile --out inv1", "tmp"),
+    "mdroll invert run1 --known m=500 --known R=0.5 --out inv1": ("options", "mdroll invert"),
     "mdroll invert accel.csv --frequency-unit Hz --sided one --density Hz --passes 30 --known v0=10 --known m=500 "
     "--known R=0.5 --band 20:20000Hz --free H,q_min,a,h0,E_star,a_jitter,noise": ("options", "mdroll invert"),
     "export PYTHONPATH=/tmp/site:$PWD": ("ci", "shell set-up of the GPU machine"),

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy import integrate, optimize
 
-from mdroll import Params, physics
+from mdroll import Params, physics, run_ensemble
 
 PACKAGE = Path(physics.__file__).resolve().parent
 
@@ -153,6 +153,38 @@ def test_eq27_zeros_are_spaced_by_the_eq26_period():
     zeros = [optimize.brentq(lambda q: float(physics.contact_geometry_transform(q, a)),
                              (n * math.pi + 0.01) / a, (n * math.pi + math.pi / 2 - 1e-9) / a) for n in (60, 61)]
     assert zeros[1] - zeros[0] == pytest.approx(physics.modulation_period(a), rel=1e-4)
+
+
+def test_modulation_phase_is_eq39s_not_eq27s():
+    """Eq 27's zeros (tan qa = qa, brentq) lie at q a / pi = 2.46, 3.47, 4.48; the minima of a
+    periodic ensemble's force PSD (flattened by q^(2H+3), eq 23) at the integers 3..6, the zeros
+    of sin^2(q a) in eq 39, within two bins, and at least 0.4 period from eq 27's."""
+    a = A
+    g_zeros = [optimize.brentq(lambda x: math.tan(x) - x, n * math.pi + 0.1, n * math.pi + math.pi / 2 - 1e-9) / math.pi
+               for n in (2, 3, 4, 5, 6)]
+    np.testing.assert_allclose(g_zeros[:3], [2.4590, 3.4709, 4.4774], atol=1e-4)
+    p = Params(L=0.5)
+    result = run_ensemble(p, realizations=8, boundary="periodic", window=False, device="cpu", progress=False)
+    x = result.q * p.a / math.pi
+    flat = result.force_psd * result.q ** (2 * p.H + 3)
+    step = float(x[1] - x[0])
+    for n in (3, 4, 5, 6):
+        near = np.flatnonzero(np.abs(x - n) < 0.4)
+        minimum = x[near[np.argmin(flat[near])]]
+        assert abs(minimum - n) < 2 * step, (n, minimum)
+        assert np.min(np.abs(minimum - np.array(g_zeros))) > 0.4
+
+
+def test_forward_euler_growth_over_the_thesis_run():
+    """Forward Euler on y'' = -omega^2 y multiplies the amplitude by sqrt(1 + (omega dt)^2) a step
+    (the step matrix's eigenvalue, numpy): at the defaults' omega_0 dt over 1 036 800 steps that
+    is exp(N (omega dt)^2 / 2) = 1.35 in amplitude and 1.83 in energy."""
+    p = Params()
+    w = p.omega_0 * p.dt
+    step = np.array([[1.0, p.dt], [-p.omega_0**2 * p.dt, 1.0]])  # y += dt v, v += -omega^2 y dt, old values
+    growth = float(np.abs(np.linalg.eigvals(step)[0])) ** 1_036_800
+    assert growth == pytest.approx(math.exp(1_036_800 * w * w / 2), rel=1e-6)
+    assert growth == pytest.approx(1.354, abs=0.002) and growth**2 == pytest.approx(1.833, abs=0.004)
 
 
 # ---------------------------------------------------------------------------------- roughness

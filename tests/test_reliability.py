@@ -20,6 +20,7 @@ from mdroll import EnsembleResult, Params, __version__ as mdroll_version, contac
 from mdroll.cli import main as cli_main
 from mdroll.cli.common import LOCK
 from mdroll.cli.run import RUN_OUTPUTS
+from mdroll.ensemble.resolution import Resolution
 from mdroll.ensemble import batching, checkpoint as checkpoint_module, pipeline, validity
 from mdroll.forces.indenter import reach
 from mdroll.ensemble.checkpoint import CHECKPOINT, read_checkpoint
@@ -429,8 +430,8 @@ def test_a_directory_a_live_run_holds_is_refused(quick_plots, tmp_path, capsys):
 
 
 def test_merge_names_the_differing_field_and_both_values(tmp_path):
-    a = run_ensemble(T, realizations=[0], device="cpu", progress=False)
-    b = run_ensemble(T.replace(H=0.5), realizations=[1], device="cpu", progress=False)
+    a = run_ensemble(T, realizations=[0], device="cpu", progress=False, window=False)
+    b = run_ensemble(T.replace(H=0.5), realizations=[1], device="cpu", progress=False, window=False)
     w = run_ensemble(T, realizations=[2], device="cpu", progress=False, window=True)
     with pytest.raises(ValueError, match="H: 0.7 vs 0.5"):
         EnsembleResult.merge([a, b])
@@ -566,7 +567,9 @@ def test_physics_outside_the_model_is_flagged():
     slow = Params(v0=3.84e-3)  # omega_0 dt = 1.99: stable by the bound, 8.4 MN RMS force
     assert "omega_0 dt = 1.99" in validity.parameter_concerns(slow)[0]
     assert validity.parameter_concerns(Params(v0=0.016)) == []  # omega_0 dt = 0.48: a 0.95 % shift
-    lost = type("R", (), {"params": Params(), "n_real": 2, "steps": 1000, "contact_lost_steps": 21})()
+    resolved = Resolution({"force": np.full(8, -1), "accel": np.full(8, -1)})
+    lost = type("R", (), {"params": Params(), "n_real": 2, "steps": 1000, "contact_lost_steps": 21,
+                          "window": True, "resolution": resolved})()
     assert "contact was lost (F = 0) on 21 of 2000 steps" in validity.result_concerns(lost)[0]
     lost.contact_lost_steps = 20
     assert validity.result_concerns(lost) == []

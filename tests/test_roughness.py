@@ -239,9 +239,13 @@ def test_run_writes_band_outputs(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     fa = summary["bands"]["force_acceleration"]
     assert len(fa["L_F_dB"]) == len(fa["frequency_Hz"]) > 5
+    # ISO 1683's reference 1 uN: 20 log10(1e6) = 120 dB above the level re 1 N
+    levels = [(n, u) for n, u in zip(fa["L_F_dB"], fa["L_F_uN_dB"]) if n is not None]
+    assert levels and all(u - n == pytest.approx(20 * math.log10(1e6), abs=1e-9) for n, u in levels)
     assert (out / "bands.png").stat().st_size > 0
     rows = (out / "bands.csv").read_text().splitlines()
     assert rows[0].startswith("quantity,") and any(r.startswith("acceleration,") for r in rows)
+    assert any(",1 uN," in r for r in rows) and any(",1 N," in r for r in rows)
 
 
 def test_spec_carries_a_model():

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 from pathlib import Path
 
 from ..devices import resolve_device
@@ -15,6 +16,8 @@ from ..files import atomic_write
 from .common import cluster_runner, output_dir, output_options, progress_printer, reading, size_options
 
 #: What ``invert`` writes (``--force`` removes the old ones first).
+#: The exit code of a fit the acceptance gate rejects (:mod:`mdroll.inverse.acceptance`).
+REJECTED = 3
 INVERT_OUTPUTS = ("inverse.json", "inverse.png", "roundtrip.json", "roundtrip.png", "roundtrip.md")
 
 
@@ -30,7 +33,8 @@ def add_parser(sub) -> None:
     p.add_argument("--band", metavar="LO:HI[Hz|rad/s]", help="fitted band, e.g. 20:20000Hz (default: the spectrum's, "
                    "above twice the resonance)")
     p.add_argument("--quantity", choices=["accel", "force"], help="which PSD (default accel)")
-    p.add_argument("--window", action="store_true", help="the series had the Hann window (mdroll run --window)")
+    p.add_argument("--window", action="store_true", default=None, help="a table's series had the Hann window (an "
+                   "mdroll spectra.npz records its own)")
     p.add_argument("--frequency-unit", choices=["Hz", "rad/s"], help="table: unit of the frequency column")
     p.add_argument("--sided", choices=["one", "two"], help="table: one- or two-sided PSD")
     p.add_argument("--density", choices=["Hz", "rad/s"], help="table: PSD per Hz or per rad/s")
@@ -164,6 +168,10 @@ def _fit(args) -> int:
             print(f"  {name:<9} {lo:.6g} .. {hi:.6g}  {b['bias'][name]:+.4g}  {b['bias_corrected'][name]:.6g}  "
                   f"{low:.6g} .. {high:.6g}")
     print(f"wrote {out}/: inverse.json inverse.png")
+    if not result.accepted:
+        print(f"mdroll: the fit is rejected: {result.rejection}; its estimates are not the spectrum's parameters "
+              "(inverse.json: \"accepted\": false)", file=sys.stderr)
+        return REJECTED
     return 0
 
 

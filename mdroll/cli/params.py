@@ -15,10 +15,14 @@ def add_parser(sub) -> None:
 
 def execute(args) -> int:
     p = build_params(args)
-    print("parameters")
-    for key, value in p.as_dict().items():
-        print(f"  {key:<10} {format_value(value):>14}  {UNITS.get(key, '')}")
-    print("derived")
-    for key, (value, unit, text) in p.derived().items():
-        print(f"  {key:<18} {format_value(value):>14}  {unit:<9} {text}")
+    given = [(key, "-" if value in (None, "") else format_value(value), UNITS.get(key, ""), "")
+             for key, value in p.as_dict().items()]
+    derived = [(key, format_value(value), unit, text) for key, (value, unit, text) in p.derived().items()]
+    names = max(len(row[0]) for row in given + derived)
+    values = max(len(row[1]) for row in given + derived)
+    units = max(len(row[2]) for row in given + derived)
+    for title, rows in (("parameters", given), ("derived", derived)):
+        print(title)
+        for key, value, unit, text in rows:
+            print(f"  {key:<{names}}  {value:>{values}}  {unit:<{units}}  {text}".rstrip())
     return 0

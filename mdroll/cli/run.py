@@ -28,7 +28,7 @@ from .common import (build_params, build_structures, cluster_options, cluster_ru
 #: run's files never mix with a new run's.
 RUN_OUTPUTS = ("spectra.npz", "summary.json", "accel_psd.png", "force_psd.png", "bands.csv", "bands.png")
 #: Settings of a run besides its parameters, and their defaults (a resumed run's are its checkpoint's).
-RUN_DEFAULTS = {"seed": 0, "algorithm": None, "mode": "decoupled", "boundary": "open", "window": False}
+RUN_DEFAULTS = {"seed": 0, "algorithm": None, "mode": "decoupled", "boundary": "open", "window": True}
 
 
 def add_parser(sub) -> None:
@@ -46,7 +46,13 @@ def add_parser(sub) -> None:
     p.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
     p.add_argument("--batch", type=int, help="realizations per batch (default: from free memory)")
     p.add_argument("--memory-limit", type=float, metavar="GIB", help="cap the memory batches are sized from (GiB)")
-    p.add_argument("--window", action="store_true", default=None, help="Hann window before the FFT")
+    estimator = p.add_mutually_exclusive_group()
+    estimator.add_argument("--window", action="store_true", default=None, help="Hann window before the FFT, "
+                           "normalized by mean w^2 (the default)")
+    estimator.add_argument("--no-window", dest="window", action="store_false", help="no window: the open record "
+                           "leaks the resonance and the high band into other bins (flagged in the outputs)")
+    estimator.add_argument("--thesis-estimator", action="store_true", help="the thesis's setup: open boundary, no "
+                           "window (for reproducing its figures; the outputs flag the bins it cannot resolve)")
     p.add_argument("--resume", metavar="DIR", help="continue the interrupted run in DIR (its checkpoint.npz); "
                    "its outputs go there too")
     p.add_argument("--force-physics", action="store_true", help="run parameters outside the model's validity "
@@ -143,7 +149,12 @@ def _distributed_spec(args, base_params, base_settings: dict, base_indices) -> E
 
 
 def _settings(args, base: dict) -> dict:
-    """The run's settings (the keys of :data:`RUN_DEFAULTS`): those given on the command line, else ``base``'s."""
+    """The run's settings (the keys of :data:`RUN_DEFAULTS`): those given on the command line, else ``base``'s;
+    ``--thesis-estimator`` is ``--boundary open --no-window``."""
+    if getattr(args, "thesis_estimator", False):
+        if args.boundary not in (None, "open"):
+            raise UsageError(f"--thesis-estimator with --boundary {args.boundary}: the thesis's record is open")
+        args.boundary, args.window = "open", False
     return {k: base[k] if getattr(args, k) is None else getattr(args, k) for k in RUN_DEFAULTS}
 
 
@@ -186,10 +197,12 @@ def write_outputs(result, out: Path) -> None:
         json.dump(summary, file, indent=2)
 
     print(f"\n{result.n_real} realizations x {result.steps} steps, {result.algorithm}, {result.mode}, "
-          f"{result.boundary} boundary, device {result.device}")
+          f"{result.boundary} boundary, device {result.device}\nestimator: {summary['estimator']}")
     rows = [(k, format_value(v["value"]), v["unit"]) for k, v in summary["derived"].items()]
     rows += [("force mean", format_value(result.force_mean), "N"), ("force RMS", format_value(result.force_rms), "N"),
              ("contact lost", str(result.contact_lost_steps), "steps")]
+    rows += [(f"unresolved {quantity}", f"{flags['unresolved_bins']}/{flags['of_bins']}", "bins")
+             for quantity, flags in summary["resolution"].items()]
     rows += [(f"time {k}", f"{v:.3f}", "s") for k, v in result.timings.items()]
     for name, value, unit in rows:
         print(f"  {name:<20} {value:>14}  {unit}")

@@ -66,7 +66,7 @@ def run_ensemble(
     device: str = "auto",
     batch: int | None = None,
     progress: bool = True,
-    window: bool = False,
+    window: bool = True,
     leaf_size: int = DEFAULT_LEAF_SIZE,
     checkpoint=None,
     resume: bool = False,
@@ -132,7 +132,9 @@ def run_ensemble(
     progress : bool
         Show a progress bar.
     window : bool
-        Hann window (scaled to mean square 1) before the FFT.
+        Hann window (scaled to mean square 1) before the FFT: the default estimator, free of
+        the open record's leakage in every band (docs/physics.md, "The default estimator and
+        the resolution flags"); False: the thesis's open, unwindowed record.
     leaf_size : int
         Springs per tree leaf (``algorithm="tree"``).
     checkpoint : path or None

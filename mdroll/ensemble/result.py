@@ -14,11 +14,15 @@ from ..files import atomic_write
 from ..errors import ParameterError
 from ..params import Params
 from .psd import RunningMoments
+from .resolution import estimator_name, resolution
 
 #: The stages of a run whose times a result reports, in the order a batch passes them.
 STAGES = ("generate", "build", "force", "response", "spectra")
 #: The arrays of a spectra file, and the fields its metadata holds beside the parameters.
 RESULT_ARRAYS = ("q", "omega", "force_psd", "force_psd_stderr", "accel_psd", "accel_psd_stderr")
+#: The masks a spectra file holds beside them (True: a bin the record cannot resolve,
+#: :mod:`mdroll.ensemble.resolution`); derived from the spectra, so not read back.
+RESULT_MASKS = ("force_unresolved", "accel_unresolved")
 RESULT_META = ("n_real", "seed", "algorithm", "mode", "boundary", "window", "device", "steps", "force_mean",
                "force_rms", "contact_lost_steps", "timings", "batch", "realizations")
 #: The run settings merged results must share (besides their physical parameters).
@@ -45,6 +49,7 @@ class EnsembleResult:
         realization indices, in order. n_real: their count (``params.n_real`` equals it).
     window : whether a Hann window was applied before the FFTs (None: unknown, a file written
         before the window was recorded); results differing in it are never merged.
+    resolution : the bins this record and estimator cannot resolve (:mod:`mdroll.ensemble.resolution`).
 
     Plots: :func:`mdroll.plotting.plot_psd`.
     """
@@ -71,6 +76,11 @@ class EnsembleResult:
     realizations: list = field(default_factory=list)
     window: bool | None = False
 
+    @property
+    def resolution(self):
+        """The unresolved bins of both spectra (:func:`mdroll.ensemble.resolution.resolution`)."""
+        return resolution(self.omega, self.force_psd, self.accel_psd, self.params.omega_0, self.window, self.mode)
+
     def save(self, path) -> Path:
         """Write an ``.npz`` with the spectra, the parameters (:meth:`Params.physical_dict`; the
         count is ``n_real``) and the provenance, atomically (:func:`mdroll.files.atomic_write`).
@@ -80,8 +90,10 @@ class EnsembleResult:
             path = path.with_name(path.name + ".npz")
         meta = {"params": self.params.physical_dict(), **{k: getattr(self, k) for k in RESULT_META},
                 "mdroll_version": __version__}
+        flags = self.resolution
+        masks = {f"{quantity}_unresolved": flags.mask(quantity) for quantity in ("force", "accel")}
         with atomic_write(path) as file:
-            np.savez(file, **{k: getattr(self, k) for k in RESULT_ARRAYS}, meta=json.dumps(meta))
+            np.savez(file, **{k: getattr(self, k) for k in RESULT_ARRAYS}, **masks, meta=json.dumps(meta))
         return path
 
     @classmethod
@@ -148,13 +160,15 @@ class EnsembleResult:
 
 def result_summary(result: EnsembleResult) -> dict:
     """JSON-ready summary: parameters, derived values, the run's settings (realization count,
-    window, the largest batch used), RMS force, timings, device, mdroll version."""
+    window, the estimator's name, the largest batch used), the unresolved bins (``resolution``:
+    which and why), RMS force, timings, device, mdroll version."""
     p = result.params
     return {
         "params": p.physical_dict(),
         "derived": {k: {"value": v, "unit": u} for k, (v, u, _) in p.derived().items()},
         "n_real": result.n_real, "seed": result.seed, "algorithm": result.algorithm, "mode": result.mode,
-        "boundary": result.boundary, "window": result.window, "batch": result.batch, "device": result.device,
+        "boundary": result.boundary, "window": result.window, "estimator": estimator_name(result.window),
+        "resolution": result.resolution.summary(result.omega), "batch": result.batch, "device": result.device,
         "steps": result.steps, "mdroll_version": __version__,
         "force_mean_N": result.force_mean, "force_rms_N": result.force_rms,
         "contact_lost_steps": result.contact_lost_steps,

@@ -36,7 +36,8 @@ class EnsembleSpec:
     algorithm, mode, boundary : str
         As for :func:`mdroll.run_ensemble`; the algorithm by default the registry's for the mode.
     window : bool
-        Hann window on the force and acceleration series before their PSDs.
+        Hann window on the force and acceleration series before their PSDs (default; False:
+        the thesis's unwindowed record).
     roughness : mdroll.roughness.kinds.RoughnessSpectrum or None
         A spectrum instead of the one the roughness fields of ``params`` name (None: those).
         Serialized by its description; a callable spectrum cannot be read back.
@@ -52,7 +53,7 @@ class EnsembleSpec:
     algorithm: str | None = None
     mode: str = "decoupled"
     boundary: str = "open"
-    window: bool = False
+    window: bool = True
     roughness: object = None
     integrator: str = "semi-implicit"
 

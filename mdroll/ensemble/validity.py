@@ -15,12 +15,16 @@ flag what can be computed but no longer means what the thesis's model says:
   8.4 MN at omega_0 dt = 1.99).
 - contact lost (F = 0) on more than ``MAX_LOST_FRACTION`` of the steps: the spectra then hold
   the gaps of a wheel off the rail, not the linear response of section 5.1.
+- bins where the estimator's leakage exceeds the signal (:mod:`mdroll.ensemble.resolution`) beyond
+  ``MAX_UNRESOLVED_FRACTION`` of a spectrum: the leakage, not the physics, decides them (the
+  lowest bins and the main lobe of omega_0, flagged in every record, are not counted).
 """
 
 from __future__ import annotations
 
 from .. import physics
 from ..params import Params
+from .resolution import REASONS
 
 #: The largest h0 / d0 taken as small roughness.
 MAX_H0_OVER_D0 = 0.1
@@ -29,6 +33,8 @@ MAX_H0_OVER_D0 = 0.1
 MAX_RESONANCE_SHIFT = 0.01
 #: The largest fraction of the steps (over all realizations) with contact lost.
 MAX_LOST_FRACTION = 0.01
+#: The largest fraction of a spectrum's bins flagged unresolved without a warning.
+MAX_UNRESOLVED_FRACTION = 0.01
 
 
 def parameter_concerns(params: Params) -> list[str]:
@@ -63,4 +69,14 @@ def result_concerns(result) -> list[str]:
             f"({100 * result.contact_lost_steps / steps:.3g} %, more than {100 * MAX_LOST_FRACTION:g} %): the spectra "
             "hold a wheel leaving the rail, not the linear response of section 5.1; lower h0 or v0"
         )
+    flags = result.resolution
+    for quantity, name in (("accel", "acceleration"), ("force", "force")):
+        mask = flags.reasons[quantity] == REASONS.index("leakage exceeds the signal")
+        if mask.sum() > MAX_UNRESOLVED_FRACTION * mask.size:
+            concerns.append(
+                f"{int(mask.sum())} of {mask.size} {name} bins are unresolved ({100 * mask.mean():.3g} %: the "
+                f"estimator's leakage exceeds the signal there{'' if result.window else ', as in any unwindowed open record'}); "
+                "summary.json's resolution lists them, spectra.npz's "
+                f"{quantity}_unresolved masks them" + ("" if result.window else "; the Hann window (the default) removes it")
+            )
     return concerns

@@ -9,6 +9,8 @@
 4. For an mdroll spectrum, the simulated correction of the closed form (:mod:`.correction`),
    iterated to its fixed point by refits (:func:`refit`).
 5. The fill check (:mod:`.fill_check`), where the noise floor and the jitter can trade.
+6. The acceptance gate (:mod:`.acceptance`): a fit whose model the data reject, or whose band
+   the record cannot resolve, is marked ``accepted = False`` with the reasons.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import scipy.optimize
 
 from ..ensemble.spec import run_specs
 from ..errors import ParameterError
+from .acceptance import acceptance
 from .correction import iterate
 from .discrepancy import discrepancy_sigma, prior, with_discrepancy
 from .fill_check import FILL_CHECKS, with_fill_check
@@ -105,7 +108,9 @@ def fit(spectrum: Spectrum, known: dict | None = None, free=None, band=None, pas
         result = _result(problem, theta, best, spectrum, profile, profile_points)
         if sigma:
             result = with_discrepancy(result, sigma)
-    return with_fill_check(spectrum, result, bin, fill_check, refit=fit)
+    result = with_fill_check(spectrum, result, bin, fill_check, refit=fit)
+    result.acceptance = acceptance(result.gof, result.band, spectrum, result.discrepancy)
+    return result
 
 
 def refit(job, bin: int = 1, profile: bool = False, profile_points: int = 9) -> FitResult:

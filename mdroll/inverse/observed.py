@@ -62,6 +62,8 @@ class Spectrum:
     truth : the generating parameters of an mdroll spectrum (a dict), kept only to compare
         estimates with; the fit never reads it.
     source : where it came from, for the record.
+    unresolved : (n,) bool, True at the bins the record cannot resolve (an mdroll spectrum,
+        :mod:`mdroll.ensemble.resolution`), or None when unknown.
     """
 
     omega: np.ndarray
@@ -76,6 +78,7 @@ class Spectrum:
     truth: dict | None = None
     source: str = ""
     simulation: dict = field(default_factory=dict)
+    unresolved: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         _choice("quantity", self.quantity, QUANTITIES)
@@ -141,18 +144,24 @@ def _check_values(name: str, values: np.ndarray, omega: np.ndarray) -> None:
                              "finite and >= 0")
 
 
-def from_result(result, quantity: str = "accel", window: bool = False) -> Spectrum:
+def from_result(result, quantity: str = "accel", window: bool | None = None) -> Spectrum:
     """The spectrum of an :class:`mdroll.EnsembleResult` (two-sided per rad/m on q, section 6),
     as two-sided per rad/s on omega = q v0: ``C(omega) = C(q) / v0``. The q = 0 bin is dropped.
 
-    ``window``: whether the run used the Hann window (its ``spectra.npz`` does not record it).
+    ``window``: whether the run used the Hann window; None (default): as the result records it
+    (a file from before the window was recorded: no window). ``unresolved`` holds the bins the
+    record cannot resolve (:mod:`mdroll.ensemble.resolution`).
     """
+    if window is None:
+        window = bool(result.window)
     _choice("quantity", quantity, QUANTITIES)
     p: Params = result.params
     psd = getattr(result, f"{quantity}_psd")
     err = getattr(result, f"{quantity}_psd_stderr")
     keep = result.q > 0
+    unresolved = result.resolution.mask(quantity)[keep]
     return Spectrum(omega=result.omega[keep], psd=psd[keep] / p.v0, quantity=quantity, passes=int(result.n_real),
+                    unresolved=unresolved,
                     stderr=err[keep] / p.v0 if result.n_real > 1 else None, v0=p.v0, dt=p.dt, window=bool(window),
                     line_length=p.length, truth=_truth(p), source="mdroll ensemble",
                     simulation={"boundary": result.boundary, "mode": result.mode, "algorithm": result.algorithm,
@@ -164,12 +173,13 @@ def _truth(p: Params) -> dict:
             "m": p.m, "v0": p.v0, "F_N": p.F_N, "lambda_A": p.lambda_A, "omega_0": p.omega_0}
 
 
-def read_spectrum(path, quantity: str | None = None, window: bool = False, frequency_unit: str | None = None,
+def read_spectrum(path, quantity: str | None = None, window: bool | None = None, frequency_unit: str | None = None,
                   sided: str | None = None, density: str | None = None, passes: int | None = None) -> Spectrum:
     """Read an mdroll ``spectra.npz`` (it has ``q`` and ``meta``) or a table (:func:`read_table`).
 
     For an mdroll file ``quantity`` (default "accel") picks the acceleration or force PSD, and
-    ``window`` says whether the run used the Hann window; the table options must not be given.
+    its own record says whether the run used the Hann window (``window`` True or False must agree
+    with it); the table options must not be given. For a table ``window`` None means False.
     """
     path = Path(path)
     if not path.is_file():
@@ -183,9 +193,13 @@ def read_spectrum(path, quantity: str | None = None, window: bool = False, frequ
             if given:
                 raise ParameterError(f"{path} is an mdroll spectra.npz, whose units are known: {', '.join(given)} "
                                      "must not be given")
-            return from_result(EnsembleResult.load(path), quantity or "accel", window)
+            result = EnsembleResult.load(path)
+            if window is not None and result.window is not None and bool(window) != result.window:
+                raise ParameterError(f"window = {window} for {path}, whose run was "
+                                     f"{'windowed' if result.window else 'not windowed'}: drop the window option")
+            return from_result(result, quantity or "accel", window)
     return read_table(path, quantity=quantity or "accel", frequency_unit=frequency_unit, sided=sided, density=density,
-                      passes=passes, window=window)
+                      passes=passes, window=bool(window))
 
 
 def read_table(path, quantity: str = "accel", frequency_unit: str | None = None, sided: str | None = None,

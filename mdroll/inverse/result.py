@@ -20,6 +20,8 @@ class FitResult:
     uncalibrated ones (:mod:`.intervals`); ``derived``: derived quantities with delta-method
     intervals; ``gof``: goodness of fit (:func:`~mdroll.inverse.likelihood.goodness_of_fit`);
     ``profiles``: ``{name: {"values": [...], "delta": [...], "ci95": [lo, hi]}}`` (:mod:`.profiles`).
+    ``acceptance``: the gate of :mod:`.acceptance` (``accepted``, ``reasons``, ``notes``, ...);
+    ``success`` is the optimizer's convergence; :attr:`accepted` both.
     """
 
     free: list
@@ -49,6 +51,22 @@ class FitResult:
     correction_used: Correction | None = None
     fill_check: dict | None = None
     discrepancy: dict | None = None
+    acceptance: dict | None = None
+
+    @property
+    def accepted(self) -> bool:
+        """The optimizer converged and the gate (:mod:`.acceptance`) accepts the fit."""
+        return self.success and (self.acceptance is None or self.acceptance["accepted"])
+
+    @property
+    def rejection(self) -> str:
+        """Why the fit is not accepted, in one line (empty when it is)."""
+        if self.accepted:
+            return ""
+        reasons = list((self.acceptance or {}).get("reasons", []))
+        if not self.success:
+            reasons.insert(0, f"the optimizer did not converge ({self.message})")
+        return "; ".join(reasons)
 
     def to_dict(self) -> dict:
         """A JSON-ready dict (arrays as lists; the band's data and model included)."""
@@ -59,8 +77,9 @@ class FitResult:
             "correlation": self.correlation.tolist(), "covariance_fitted_scale": self.covariance.tolist(),
             "fitted_scale": {n: PARAMETERS[n][1] for n in self.free},
             "derived": self.derived, "gof": self.gof, "band_rad_s": list(self.band), "kappa": self.kappa,
-            "passes": self.passes, "passes_assumed": self.passes_assumed, "success": self.success,
-            "message": self.message, "quantity": self.quantity,
+            "passes": self.passes, "passes_assumed": self.passes_assumed, "accepted": self.accepted,
+            "rejected_because": self.rejection, "success": self.accepted, "optimizer_success": self.success,
+            "acceptance": self.acceptance, "message": self.message, "quantity": self.quantity,
             "profiles": self.profiles, "truth": self.truth, "bootstrap": self.bootstrap, "correction": self.correction,
             "fill_check": self.fill_check, "discrepancy": self.discrepancy,
             "convention": "two-sided PSD per rad/s on omega (rad/s)",
@@ -88,6 +107,12 @@ class FitResult:
         lines.append(f"bins {g['bins']}, deviance/dof {g['deviance_per_dof']:.3g}, dispersion phi {g['phi']:.3g}, "
                      f"long-run factor tau {g['tau']:.3g}, KS p {g['ks_p']:.3g}, K = {self.passes}"
                      + (" (assumed)" if self.passes_assumed else ""))
+        gate = self.acceptance
+        if gate:
+            lines.append(("accepted" if self.accepted else "REJECTED") + f" at the {gate['level']:g} level"
+                         + (f" (misfit p {gate['misfit_p']:.3g})" if gate["misfit_p"] is not None else "")
+                         + (f": {self.rejection}" if not self.accepted else ""))
+            lines += [f"note: {note}" for note in gate["notes"]]
         c = self.correction
         if c and "ratio" in c:
             lines.append(f"simulated correction r = {min(c['ratio']):.3g} .. {max(c['ratio']):.3g} over the band, "

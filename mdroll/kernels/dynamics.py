@@ -3,7 +3,8 @@
 Time is sequential per realization; one block per realization shares each step's spring sum.
 The decoupled response (section 5.1) is linear and needs no time loop: kernels/moments.py.
 Semi-implicit Euler: ``v += dt a(y)`` first, then ``y += dt v`` with the new v; plain forward
-Euler grows the oscillation energy by ~34 % over 10^6 steps at the defaults. Forward Euler
+Euler grows the oscillation's amplitude by exp(N (omega_0 dt)^2 / 2) over N steps (docs/physics.md
+section 5: ~35 % in amplitude, ~83 % in energy over ~10^6 steps at the defaults). Forward Euler
 (``y += dt v`` with the old v, then ``v += dt a``) is the thesis's scheme ("Euler", section 3.4):
 it is kept, as a compile-time variant of the same kernel (:func:`with_integrator`), only to test
 whether it explains the thesis's Figure 11 (mdroll study coupling); every amplitude grows by

@@ -1,7 +1,8 @@
 """Railway-acoustics outputs of a run: 1/3-octave band spectra beside the narrow-band PSDs.
 
 Roughness level L_r (dB re 1 um) of the run's roughness spectrum against wavelength; force level
-(dB re 1 N) and acceleration level (dB re 1e-6 m/s^2) of the ensemble against frequency (Hz),
+(dB re 1 N, and re 1 uN, the reference of ISO 1683: :data:`UN_OVER_N_DB` more) and acceleration
+level (dB re 1e-6 m/s^2, ISO 1683) of the ensemble against frequency (Hz),
 band-integrated by the rule of :mod:`mdroll.roughness.bands` (sum over the bins inside a band of
 the one-sided PSD times the bin width). Written into summary.json (``"bands"``), bands.csv and
 bands.png (both axes: wavelength and frequency f = v0 / lambda).
@@ -20,6 +21,9 @@ from ..experiments import Figure, write_figure
 from ..files import atomic_write
 from ..params import Params
 from ..roughness import bands
+
+#: dB re 1 uN minus dB re 1 N: 20 log10(1 N / 1 uN).
+UN_OVER_N_DB = 120.0
 
 
 def band_spectra(result, spectrum=None) -> dict:
@@ -51,9 +55,10 @@ def band_spectra(result, spectrum=None) -> dict:
         "roughness": {"reference": "1 um", "wavelength_nominal_mm": bands.nominal(n_wave).tolist(),
                       "wavelength_m": lam.tolist(), "frequency_Hz": (p.v0 / lam).tolist(), "L_r_dB": clean(L_r),
                       "bins": count_r.tolist()},
-        "force_acceleration": {"reference": "1 N; 1e-6 m/s^2", "frequency_nominal_Hz": bands.nominal(n_freq).tolist(),
+        "force_acceleration": {"reference": "L_F_dB: 1 N; L_F_uN_dB: 1 uN (ISO 1683); L_a_dB: 1e-6 m/s^2 (ISO 1683)",
+                               "frequency_nominal_Hz": bands.nominal(n_freq).tolist(),
                                "frequency_Hz": f.tolist(), "wavelength_m": (p.v0 / f).tolist(), "L_F_dB": clean(L_F),
-                               "L_a_dB": clean(L_a), "bins": count_f.tolist()},
+                               "L_F_uN_dB": clean(L_F + UN_OVER_N_DB), "L_a_dB": clean(L_a), "bins": count_f.tolist()},
     }
 
 
@@ -68,7 +73,8 @@ def bands_csv(spectra: dict) -> str:
     for row in zip(r["wavelength_nominal_mm"], r["L_r_dB"], r["wavelength_m"], r["frequency_Hz"], r["bins"]):
         writer.writerow(["roughness", row[0], "mm", row[1], "1 um", row[2], row[3], row[4]])
     fa = spectra["force_acceleration"]
-    for name, key, ref in (("force", "L_F_dB", "1 N"), ("acceleration", "L_a_dB", "1e-6 m/s^2")):
+    for name, key, ref in (("force", "L_F_dB", "1 N"), ("force", "L_F_uN_dB", "1 uN"),
+                           ("acceleration", "L_a_dB", "1e-6 m/s^2")):
         for row in zip(fa["frequency_nominal_Hz"], fa[key], fa["wavelength_m"], fa["frequency_Hz"], fa["bins"]):
             writer.writerow([name, row[0], "Hz", row[1], ref, row[2], row[3], row[4]])
     return out.getvalue()
@@ -86,18 +92,24 @@ def band_figure(spectra: dict) -> Figure:
         ax_r.semilogx(lam_mm, np.array(r["L_r_dB"], dtype=float), "o-")
         ax_r.invert_xaxis()
         ax_r.set_xlabel("wavelength (mm)")
-        ax_r.set_ylabel("L_r (dB re 1 um)")
+        ax_r.set_ylabel("$L_r$ (dB re 1 \u00b5m)")
+        ax_r.set_title("roughness level, 1/3-octave bands", fontsize=10)
         ax_r.grid(True, which="both", alpha=0.3)
         top = ax_r.secondary_xaxis("top", functions=(lambda x: v0 / (np.maximum(x, 1e-12) * 1e-3),
                                                       lambda f: v0 / np.maximum(f, 1e-12) * 1e3))
         top.set_xlabel(f"frequency at v0 = {v0:g} m/s (Hz)")
         fa = spectra["force_acceleration"]
         f = np.array(fa["frequency_Hz"])
-        ax_f.semilogx(f, np.array(fa["L_F_dB"], dtype=float), "o-", label="force L_F (dB re 1 N)")
-        ax_f.semilogx(f, np.array(fa["L_a_dB"], dtype=float), "s-", label="acceleration L_a (dB re 1e-6 m/s^2)")
+        ax_f.semilogx(f, np.array(fa["L_F_dB"], dtype=float), "o-",
+                      label=f"force $L_F$ (dB re 1 N; re 1 \u00b5N, ISO 1683: +{UN_OVER_N_DB:g} dB, right axis)")
+        ax_f.semilogx(f, np.array(fa["L_a_dB"], dtype=float), "s-",
+                      label="acceleration $L_a$ (dB re 1 \u00b5m/s$^2$, ISO 1683)")
         ax_f.set_xlabel("frequency (Hz)")
-        ax_f.set_ylabel("level (dB)")
-        ax_f.legend()
+        ax_f.set_ylabel("level (dB re 1 N; re 1 \u00b5m/s$^2$)")
+        ax_f.set_title("force and acceleration levels, 1/3-octave bands", fontsize=10)
+        right = ax_f.secondary_yaxis("right", functions=(lambda x: x + UN_OVER_N_DB, lambda x: x - UN_OVER_N_DB))
+        right.set_ylabel("force level (dB re 1 \u00b5N, ISO 1683)")
+        ax_f.legend(fontsize=8)
         ax_f.grid(True, which="both", alpha=0.3)
         top = ax_f.secondary_xaxis("top", functions=(lambda f: v0 / np.maximum(f, 1e-12) * 1e3,
                                                       lambda x: v0 / (np.maximum(x, 1e-12) * 1e-3)))

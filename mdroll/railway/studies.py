@@ -140,7 +140,7 @@ def high_band_check(params: Params, spectrum, q_lo: float, seed: int = 0, n_real
     PSD (periodic, decoupled) on whole modulation periods of [q_lo, 8 q_lo]: the generalization
     of the eq 40 check (physics.md section 7: within about 1 % up to 24 q_min for the power law);
     passes within ``allowance`` + Z_SIGMA standard errors."""
-    spec = EnsembleSpec(params, seed=seed, realizations=n_real, boundary="periodic", roughness=spectrum)
+    spec = EnsembleSpec(params, seed=seed, realizations=n_real, boundary="periodic", window=False, roughness=spectrum)
     result = run_specs([spec], device=device)[0]
     predicted = roughness.linear_force_psd(params, spectrum)[: result.q.size]
     ratio, stderr = _modulation_band_ratio(result.q, result.force_psd, result.force_psd_stderr, predicted,
@@ -172,7 +172,7 @@ def eq63_study(params: Params, seed: int = 0, n_real: int = 16, device: str = "c
     iso = roughness.iso3095()
     iso_short = roughness.BandLimited(iso, p.q_min)
     cases = [hard, rolled, iso_short, iso]
-    specs = [EnsembleSpec(p, seed=seed, realizations=n_real, boundary="periodic", roughness=s) for s in cases]
+    specs = [EnsembleSpec(p, seed=seed, realizations=n_real, boundary="periodic", window=False, roughness=s) for s in cases]
     results = run_specs(specs, device=device)
     q = results[0].q
     band = _low_band(q, top, p.dq)
@@ -227,7 +227,7 @@ def dynamics_study(params: Params, speeds=(10.0, 20.0, 30.0, 40.0), seed: int = 
         iso = roughness.BandLevels(wavelengths, iso_db + offset, kind="profile", source=f"ISO 3095 limit {offset:+g} dB")
         p = params.replace(v0=float(v0))
         specs = [EnsembleSpec(p, seed=seed, realizations=n_real, algorithm=algorithm, mode=mode, boundary="periodic",
-                              roughness=iso) for mode in ("decoupled", "coupled")]
+                              window=False, roughness=iso) for mode in ("decoupled", "coupled")]
         decoupled, coupled = run_specs(specs, device=device)
         n = bands.frequency_bands_of_grid(p.dq, p.q_max, p.v0)
         levels = [bands.frequency_levels(r.q, r.accel_psd, p.dq, n, p.v0, "acceleration") for r in (decoupled, coupled)]
@@ -253,7 +253,7 @@ def contact_filter_study(params: Params, seed: int = 0, n_real: int = 8, device:
     over the same wavenumbers), beside eq 39 on the same grid bins and the closed band form of
     :func:`filters.mdr_contact_filter`; and the comparison with CNOSSOS-EU A3."""
     iso = roughness.iso3095()
-    result = run_specs([EnsembleSpec(params, seed=seed, realizations=n_real, boundary="periodic", roughness=iso)],
+    result = run_specs([EnsembleSpec(params, seed=seed, realizations=n_real, boundary="periodic", window=False, roughness=iso)],
                        device=device)[0]
     grid = roughness.grid_psd(params, iso)
     q = result.q

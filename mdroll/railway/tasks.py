@@ -43,19 +43,20 @@ def check(size: str, seed: int, device: str, out: Path, only=None) -> bool:
                      out / "contact_filter.png")
         written.append("contact_filter.png")
     results = _passes(record)
+    print("  result  check (roughness model)")
     for name, passed in results:
-        print(f"  {'PASS' if passed else 'FAIL'}  {name}")
+        print(f"  {'PASS' if passed else 'FAIL':<6}  {name}")
     if "eq63" in record:
         e = record["eq63"]
-        print(f"  eq 63 roll-off: measured {e['rolloff']['measured_ratio']:.3g} "
-              f"(+-{e['rolloff']['measured_ratio_rel_stderr'] * 100:.0f} %), closed form on the band "
+        print(f"  {'REPORT':<6}  eq 63 (model rolloff): measured {e['rolloff']['measured_ratio']:.3g} "
+              f"(\u00b1{e['rolloff']['measured_ratio_rel_stderr'] * 100:.0f} %), closed form on the band "
               f"{e['rolloff']['closed_form_band']:.3g}, eq 63 (thesis) {e['rolloff']['eq63_thesis']:.3g}")
-        print(f"  eq 63 ISO 3095: measured {e['iso3095']['measured_ratio']:.3g}, "
+        print(f"  {'REPORT':<6}  eq 63 (model iso3095): measured {e['iso3095']['measured_ratio']:.3g}, "
               f"closed form {e['iso3095']['closed_form_band']:.3g}")
     for case in record.get("dynamics", {}).get("cases", []):
-        print(f"  ISO 3095 {case['offset_dB']:+g} dB, v0 {case['v0']:g} m/s: contact lost {case['contact_lost_fraction']:.3g}, "
-              f"max |L_a coupled - decoupled| {case['max_abs_difference_dB']:.2f} dB at {case['at_Hz']:g} Hz: decoupled "
-              f"{'valid' if case['decoupled_valid'] else 'NOT valid'}")
+        print(f"  {'PASS' if case['decoupled_valid'] else 'FAIL':<6}  decoupled valid (model iso3095 "
+              f"{case['offset_dB']:+g} dB, v0 {case['v0']:g} m/s): contact lost {case['contact_lost_fraction']:.3g}, "
+              f"max |L_a coupled - decoupled| {case['max_abs_difference_dB']:.2f} dB at {case['at_Hz']:g} Hz")
     print(f"wrote {out}/: {' '.join(written)}")
     return all(passed for _, passed in results)
 
@@ -107,8 +108,21 @@ def contact_filter(out: Path) -> None:
     _write_text(out / "contact_filter.csv", contact_filter_table(comparison))
     write_json(out / "contact_filter.json", comparison)
     write_figure(contact_filter_figure(comparison), out / "contact_filter.png")
-    print(contact_filter_table(comparison))
-    print(f"wrote {out}/: contact_filter.csv contact_filter.json contact_filter.png")
+    print(contact_filter_text(comparison))
+    print(f"wrote {out}/: contact_filter.csv (every column) contact_filter.json contact_filter.png")
+
+
+def contact_filter_text(comparison: dict) -> str:
+    """The contact filter for a terminal: per wavelength and CNOSSOS case, A3 and MDR (dB)."""
+    cases = comparison["cases"]
+    lines = [f"case {i + 1}: {c['load_N'] / 1e3:g} kN, wheel diameter {c['diameter_m'] * 1e3:g} mm, "
+             f"a = {c['a_m'] * 1e3:.2f} mm" for i, c in enumerate(cases)]
+    lines.append("contact filter (dB): A3 (CNOSSOS-EU) / MDR per case")
+    lines.append(f"{'lambda (mm)':>11}" + "".join(f"{f'case {i + 1}':>15}" for i in range(len(cases))))
+    for i, lam in enumerate(comparison["wavelength_mm"]):
+        lines.append(f"{lam:>11g}" + "".join(f"{round(c['A3_dB'][i], 1) + 0.0:>7.1f} /{round(c['MDR_dB'][i], 1) + 0.0:>6.1f}"
+                                         for c in cases))
+    return "\n".join(lines)
 
 
 def profile(file: str, dx: float | None, segment: float | None, out: Path) -> None:

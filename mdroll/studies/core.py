@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..ensemble.measure import Z_SIGMA
+from ..ensemble.resolution import estimator_name
 from ..ensemble.spec import EnsembleSpec, run_specs
 
 AGREES, DISAGREES, UNRESOLVED, REPORTED = "agrees", "disagrees", "not resolved at this size", "reported"
@@ -100,9 +101,11 @@ class Runner:
 
     def spec(self, params, realizations: int, **settings) -> EnsembleSpec:
         """A spec of ``realizations`` realizations from index 0 at this study's seed: decoupled,
-        open and the registry's default algorithm of the mode (the fastest exact one,
+        open, the thesis's estimator (no window: the studies reproduce its figures) and the
+        registry's default algorithm of the mode (the fastest exact one,
         :data:`mdroll.forces.registry.DEFAULT_ALGORITHMS`) unless ``settings`` say otherwise."""
-        return EnsembleSpec(params=params, seed=self.seed, realizations=realizations, **settings)
+        return EnsembleSpec(params=params, seed=self.seed, realizations=realizations,
+                            **{"window": False, **settings})
 
     def run(self, specs: list) -> list:
         """Run ``specs`` with :func:`mdroll.run_specs` and record them; the results in order."""
@@ -110,7 +113,8 @@ class Runner:
         results = run_specs(specs, device=self.device, progress=self.progress, runner=self.cluster)
         elapsed = (time.perf_counter() - start) / max(1, len(specs))
         for spec, result in zip(specs, results):
-            self.record.append({"spec": spec.as_dict(), "steps": result.steps, "device": result.device,
+            self.record.append({"spec": spec.as_dict(), "estimator": estimator_name(spec.window),
+                                "steps": result.steps, "device": result.device,
                                 "contact_lost_steps": result.contact_lost_steps,
                                 "force_rms_N": result.force_rms, "seconds_each": elapsed,
                                 "timings_s": result.timings})

@@ -5,6 +5,7 @@ numbers come from the JSONs."""
 from __future__ import annotations
 
 import json
+import textwrap
 from pathlib import Path
 
 from ..experiments import markdown_table, text_table, write_figures, write_json
@@ -27,20 +28,30 @@ def table_rows(record: dict) -> list[tuple[str, str, str, str, str]]:
         expected = "-" if c["expected"] is None else f"{_number(c['expected'], c['unit'])} ({c['source']})"
         verdict = c["verdict"] + (" (known)" if c["known"] and c["verdict"] == DISAGREES else "")
         rows.append((f"{c['name']}: {c['thesis']}", expected, _number(c["measured"], c["unit"]),
-                     f"+-{c['stderr']:.2g}" + (f" (allowance {c['allowance']:.2g})" if c["allowance"] else ""), verdict))
+                     f"\u00b1{c['stderr']:.2g}" + (f" (allowance {c['allowance']:.2g})" if c["allowance"] else ""), verdict))
     return rows
 
 
 def format_table(record: dict) -> str:
     """The study's table: thesis claim | expected | measured | uncertainty | verdict."""
     head = ("thesis claim", "expected", "measured", "uncertainty (1 sigma)", "verdict")
-    rows = [(r[0][:70],) + r[1:] for r in table_rows(record)]
+    rows = []
+    for row in table_rows(record):
+        claim = textwrap.wrap(row[0], CLAIM_WIDTH) or [""]
+        rows.append((claim[0],) + row[1:])
+        rows += [(more, "", "", "", "") for more in claim[1:]]
     out = [f"{record['study']} ({record['thesis_figures']}; {record['equations']}), {record['size']} size, "
            f"{record['elapsed_s']:.1f} s on {record['device']}", text_table(head, rows)]
-    out.append(f"resolution: {record['resolution']}")
+    out += textwrap.wrap(f"resolution: {record['resolution']}", TEXT_WIDTH, subsequent_indent="  ")
     if record.get("summary"):
-        out.append(f"findings: {record['summary']}")
+        out += textwrap.wrap(f"findings: {record['summary']}", TEXT_WIDTH, subsequent_indent="  ")
     return "\n".join(out)
+
+
+#: Characters of the claim column of the printed table (longer claims wrap, word by word).
+CLAIM_WIDTH = 48
+#: Characters of a line of the printed resolution and findings.
+TEXT_WIDTH = 100
 
 
 def write_study(run, out) -> list[Path]:

@@ -10,7 +10,7 @@ or ``-p mdroll.testing.plugin``)::
         ...
 
     def test_my_low_band(mdroll_ensemble):
-        spec = EnsembleSpec(Params(L=0.2, dx=2e-5), realizations=16, boundary="periodic")
+        spec = EnsembleSpec(Params(L=0.2, dx=2e-5), realizations=16, boundary="periodic", window=False)
         result = mdroll_ensemble(spec)   # run once, then read from the ensemble cache
         assert_spectrum_matches(result, my_low_band, (0.0, 0.5), allowance=0.10)
 

@@ -33,6 +33,7 @@ import numpy as np
 
 from ..ensemble import measure
 from ..ensemble.measure import Z_SIGMA, band_sum, independent_ratio, paired_ratio, period_bands
+from ..ensemble.resolution import REASONS, estimator_name
 from ..ensemble.spec import EnsembleSpec
 from ..errors import ParameterError, PredictionError
 from ..params import Params
@@ -205,7 +206,24 @@ class Check:
 
     def evaluate(self, measured, reference=None) -> CheckResult:
         """Compare a measured ensemble (an :class:`~mdroll.EnsembleResult`, or a
-        :class:`~mdroll.validation.ensembles.Paired` for ``paired``) with the prediction."""
+        :class:`~mdroll.validation.ensembles.Paired` for ``paired``) with the prediction; the
+        band's bins the record cannot resolve (:mod:`mdroll.ensemble.resolution`; for a
+        resonance peak, other than its main lobe) are counted in ``details`` and warned of in the note."""
+        outcome = self._evaluate(measured, reference)
+        result = getattr(measured, "result", measured)
+        if not hasattr(result, "resolution"):  # spectra without a record (arrays a user built): nothing flagged
+            return outcome
+        flags = result.resolution.reasons[self.quantity]
+        mask = self.band.mask(self.band.axis(result), result.params)
+        flagged = mask & (flags >= 0) & ~((flags == REASONS.index("within the window's main lobe of omega_0"))
+                                          & (self.comparison == "peak"))
+        if flagged.any():
+            outcome.details["unresolved_bins_in_band"] = int(flagged.sum())
+            outcome.note += (f"; warning: {int(flagged.sum())} of the band's {int(mask.sum())} bins are unresolved by "
+                             f"this record ({estimator_name(result.window)})")
+        return outcome
+
+    def _evaluate(self, measured, reference=None) -> CheckResult:
         result = getattr(measured, "result", measured)
         params = result.params
         x = self.band.axis(result)

@@ -64,9 +64,10 @@ class Context:
     source: EnsembleSource
 
     def base(self, algorithm: str = EXACT_REFERENCE, **changes) -> EnsembleSpec:
-        """The periodic decoupled ensemble of ``size.base`` (with ``changes`` to its parameters)."""
+        """The periodic decoupled ensemble of ``size.base`` (with ``changes`` to its parameters),
+        without a window: a periodic record's bins are the line's own modes, which eq 39 predicts bin by bin."""
         p = self.size.base.replace(**changes)
-        return EnsembleSpec(p, self.seed, 0, p.n_real, algorithm, "decoupled", "periodic")
+        return EnsembleSpec(p, self.seed, 0, p.n_real, algorithm, "decoupled", "periodic", window=False)
 
     def variant(self, **changes) -> EnsembleSpec:
         """The base ensemble with some parameters changed, by the tree (equal to the direct sum to
@@ -76,9 +77,10 @@ class Context:
         return self.base("tree", **changes)
 
     def dynamics(self, mode: str) -> EnsembleSpec:
-        """The open-boundary ensemble of ``size.coupled`` by the tree, ``mode`` decoupled or coupled."""
+        """The open-boundary ensemble of ``size.coupled`` by the tree, ``mode`` decoupled or coupled,
+        with the thesis's estimator (no window), whose resonance section 5.1 compares."""
         p = self.size.coupled
-        return EnsembleSpec(p, self.seed, 0, p.n_real, "tree", mode, "open")
+        return EnsembleSpec(p, self.seed, 0, p.n_real, "tree", mode, "open", window=False)
 
 
 def eq40_psd(q, p: Params):

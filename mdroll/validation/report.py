@@ -73,7 +73,9 @@ def figure(r: CheckResult) -> Figure:
     def draw(fig):
         ax = fig.subplots()
         r.plot(ax)
-        ax.set_title(f"{r.name} ({r.equation}): ratio {r.ratio:.4f}, {'PASS' if r.passed else 'FAIL'}", fontsize=9)
+        measured = (f"ratio {r.ratio:.4f}" if math.isfinite(r.ratio)
+                    else f"measured {r.measured:.4g}, predicted {r.predicted:.4g}")
+        ax.set_title(f"{r.name} ({r.equation}): {measured}, {'PASS' if r.passed else 'FAIL'}", fontsize=9)
 
     return Figure(slug(r.name), message(r), draw, size=(6, 4), dpi=110)
 
