@@ -10,6 +10,7 @@ import dataclasses
 import datetime
 import fcntl
 import os
+import re
 import secrets
 import sys
 import tempfile
@@ -30,9 +31,17 @@ _held_locks: list[int] = []
 
 
 class Parser(argparse.ArgumentParser):
-    """An argument parser whose usage errors are a :class:`UsageError` (one line, exit 2, no usage dump)."""
+    """An argument parser whose usage errors are a :class:`UsageError` (one line, exit 2, no usage
+    dump), and that takes a negative number as an option's value (``--seed -1``, ``--dx -1e-3``,
+    ``--segment -inf``) as well as ``--opt=-x``: no option of mdroll looks like a number."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|nan)$", re.IGNORECASE)
 
     def error(self, message):
+        if message.endswith("expected one argument"):
+            message += " (a value starting with '-' is given as --option=VALUE)"
         raise UsageError(message)
 
 

@@ -4,14 +4,17 @@ inverse.png and a table), the round-trip study, and its report."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
+import sys
 from pathlib import Path
 
 from ..devices import resolve_device
-from ..errors import UsageError
+from ..errors import ParameterError, UsageError
 from ..files import atomic_write
-from .common import cluster_runner, output_dir, output_options, progress_printer, reading, size_options
+from .common import (check_directory_path, cluster_runner, output_dir, output_options, progress_printer, reading,
+                     size_options)
 
 #: What ``invert`` writes (``--force`` removes the old ones first).
 INVERT_OUTPUTS = ("inverse.json", "inverse.png", "roundtrip.json", "roundtrip.png", "roundtrip.md")
@@ -129,11 +132,16 @@ def _fit(args) -> int:
     """SPECTRUM: the fit, its plot and table, and the bootstrap's intervals with ``--bootstrap N``."""
     from ..inverse import fit, read_spectrum
     from ..inverse.plot import plot_fit
-    from ..inverse.roundtrip import bootstrap
+    from ..inverse.roundtrip import bootstrap, check_replicates
 
     path = Path(args.spectrum)
     if path.is_dir():
         path = path / "spectra.npz"
+    if args.bootstrap:
+        with _option("--bootstrap"):
+            check_replicates(args.bootstrap)
+    if args.out:
+        check_directory_path(Path(args.out), "--out")
     with reading("spectrum file", path):
         spectrum = read_spectrum(path, quantity=args.quantity, window=args.window, frequency_unit=args.frequency_unit,
                                  sided=args.sided, density=args.density, passes=args.passes)
@@ -155,6 +163,9 @@ def _fit(args) -> int:
     with atomic_write(out / "inverse.json", "w") as file:
         json.dump({"source": str(path), **result.to_dict()}, file, indent=1)
     print(result.table())
+    if not result.success:
+        print(f"mdroll: warning: the optimizer stopped without converging ({result.message}); the estimates and "
+              "intervals may not be the likelihood's maximum", file=sys.stderr)
     if result.bootstrap:
         b = result.bootstrap
         print(f"bootstrap ({b['replicates']} replicates): percentile 95%, bias, bias-corrected estimate, basic 95%")
@@ -164,6 +175,15 @@ def _fit(args) -> int:
                   f"{low:.6g} .. {high:.6g}")
     print(f"wrote {out}/: inverse.json inverse.png")
     return 0
+
+
+@contextlib.contextmanager
+def _option(name: str):
+    """A ParameterError of a value checked for the option ``name``, as one line naming the option."""
+    try:
+        yield
+    except ParameterError as exc:
+        raise UsageError(f"{name}: {exc}") from None
 
 
 def _band(text: str):
