@@ -64,7 +64,9 @@ def read_toml(path, what: str, error: type[Exception] = ValueError) -> dict:
         raise error(f"{what} {str(path)!r} does not exist")
     try:
         return tomllib.loads(file.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+    except UnicodeDecodeError:
+        raise error(f"{what} {path}: not a text file (not UTF-8); TOML is UTF-8 text") from None
+    except tomllib.TOMLDecodeError as exc:  # its message names the line and column
         raise error(f"{what} {path}: not valid TOML ({exc})") from None
 
 

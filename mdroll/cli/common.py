@@ -107,8 +107,9 @@ def _parse_value(key: str, text: str):
         if key == "n_real":
             return int(text)
         return float(text)
-    except ValueError as exc:
-        raise UsageError(f"--set {key}={text}: not a number ({exc})") from None
+    except ValueError:
+        kind = "an integer" if key == "n_real" else "a number"
+        raise UsageError(f"--set {key}={text}: not {kind}") from None
 
 
 def load_config(path: str) -> dict:
@@ -165,8 +166,11 @@ def reading(what: str, path):
         yield
     except MdrollError:
         raise
-    except (OSError, ValueError) as exc:
-        raise UsageError(f"{what} {str(path)!r} cannot be read: {exc}") from None
+    except OSError as exc:
+        raise UsageError(f"{what} {str(path)!r} cannot be read: {exc.strerror or 'an input/output error'}") from None
+    except ValueError:
+        raise UsageError(f"{what} {str(path)!r} cannot be read: it is not in a format its option reads (see "
+                         "mdroll COMMAND --help)") from None
 
 
 # ----------------------------------------------------------------------------- output

@@ -87,14 +87,11 @@ def execute(args) -> int:
 
 def _report(args) -> int:
     """``--report JSON ...``: the Markdown tables of round-trip records."""
+    from ..inverse.records import read_record
     from ..inverse.roundtrip import merge_records, report
 
-    records = []
-    for name in args.report:
-        try:
-            records.append(json.loads(Path(name).read_text()))
-        except (OSError, ValueError) as error:
-            raise UsageError(f"--report {name}: not a readable round-trip record ({error})") from None
+    with _option("--report"):
+        records = [read_record(name) for name in args.report]
     print(report(merge_records(records)))
     return 0
 

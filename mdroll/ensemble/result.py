@@ -12,7 +12,7 @@ import numpy as np
 from .._version import __version__
 from ..files import atomic_write
 from ..params import ParameterError, Params
-from .psd import RunningMoments
+from .psd import RunningMoments, wavenumbers
 
 #: The stages of a run whose times a result reports, in the order a batch passes them.
 STAGES = ("generate", "build", "force", "response", "spectra")
@@ -95,7 +95,7 @@ class EnsembleResult:
         """The result saved at ``path`` by :meth:`save`; anything else (a truncated or foreign
         file, a checkpoint) is refused with a :class:`ParameterError` naming the file."""
         try:
-            with np.load(path) as data:
+            with np.load(path, allow_pickle=False) as data:
                 meta = json.loads(str(data["meta"]))
                 if "done" in meta:
                     raise ParameterError(f"{path} is a checkpoint of an unfinished run, not its spectra: finish the "
@@ -182,13 +182,21 @@ def _check_content(result: EnsembleResult, where) -> None:
     if any(isinstance(i, bool) or not isinstance(i, (int, np.integer)) or i < 0 for i in indices) \
             or len(set(indices)) != n:
         raise ParameterError(f"{where}: its realization list must hold {n} distinct integers >= 0")
-    size = np.shape(result.q)
+    steps = result.steps
+    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 2:
+        raise ParameterError(f"{where}: steps = {steps!r}, expected an integer >= 2")
+    grid = wavenumbers(steps, result.params.dx)
+    size = grid.shape
     for name in RESULT_ARRAYS:
         values = np.asarray(getattr(result, name))
         if values.shape != size or values.ndim != 1 or values.dtype.kind != "f":
             raise ParameterError(f"{where}: {name} has shape {values.shape}, expected {size} floats (one per wavenumber)")
+        expected = {"q": grid, "omega": grid * result.params.v0}.get(name)
+        if expected is not None and not np.allclose(values, expected, rtol=1e-12, atol=0.0):
+            raise ParameterError(f"{where}: {name} is not the grid of {steps} steps of dx = {result.params.dx!r} m "
+                                 f"(q_k = 2 pi k / (steps dx){', omega = q v0' if name == 'omega' else ''})")
         bad = ~np.isfinite(values) | (values < 0)
-        if name != "q" and name != "omega" and bad.any():
+        if bad.any():
             i = int(np.argmax(bad))
             raise ParameterError(f"{where}: {name}[{i}] = {values[i]!r}; a spectrum and its standard error must be "
                                  "finite and >= 0")
