@@ -18,8 +18,8 @@ from ..params import ParameterError, Params
 from .tabulated import Tabulated, read_numbers, read_two_columns
 
 
-#: A measured profile's sample spacing (m): a trolley's 0.1 mm-ish steps, never nanometres or metres.
-MIN_DX, MAX_DX = 1e-7, 0.1
+#: A measured profile's sample spacing (m): a trolley samples every millimetre or finer, never metres.
+MIN_DX, MAX_DX = 1e-7, 0.01
 #: The largest RMS height (m) a rail or wheel roughness profile has; above, the unit is wrong.
 MAX_PROFILE_RMS = 1e-3
 #: The most samples a profile may hold (a 100 km scan at 1 mm).
