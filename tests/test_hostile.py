@@ -152,10 +152,10 @@ def test_the_validity_rule_holds_for_lines_of_their_own_level(tmp_path, capsys, 
 
 
 # ----------------------------------------------------------------------------- invert input
-def _npz_table(tmp_path, **extra):
+def _npz_table(tmp_path, scale=1e-3, **extra):
     f = np.geomspace(20.0, 2e4, 40)
     path = tmp_path / "t.npz"
-    np.savez(path, frequency=f, psd=1e-3 * f**-1.5, frequency_unit="Hz", sided="one", density="Hz", **extra)
+    np.savez(path, frequency=f, psd=scale * f**-1.5, frequency_unit="Hz", sided="one", density="Hz", **extra)
     return path
 
 
@@ -174,6 +174,8 @@ INVERT_CASES = [
      "not a readable NPZ table"),
     ("truncated table", lambda tmp, r: _truncated(_npz_table(tmp)), [], "not a readable NPZ"),
     ("not UTF-8", lambda tmp, r: _write(tmp / "t.csv", b"\xff\xfe1,2\n"), [], "not UTF-8"),
+    ("no power", lambda tmp, r: _npz_table(tmp, scale=0.0), ["--known", "v0=20"], "0 bins with power"),
+    ("denormal power", lambda tmp, r: _npz_table(tmp, scale=5e-324), ["--known", "v0=20"], "bins with power"),
     ("bootstrap unbounded", lambda tmp, r: tmp / "none.npz", ["--bootstrap", "1000000000"], "2 to 10000"),
 ]
 

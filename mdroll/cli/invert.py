@@ -16,6 +16,8 @@ from ..files import atomic_write
 from .common import (check_directory_path, cluster_runner, output_dir, output_options, progress_printer, reading,
                      size_options)
 
+#: Spectra of more bins than this get a progress line before the fit (the readers bound them).
+LARGE_SPECTRUM = 50_000
 #: What ``invert`` writes (``--force`` removes the old ones first).
 INVERT_OUTPUTS = ("inverse.json", "inverse.png", "roundtrip.json", "roundtrip.png", "roundtrip.md")
 
@@ -142,6 +144,9 @@ def _fit(args) -> int:
     with reading("spectrum file", path):
         spectrum = read_spectrum(path, quantity=args.quantity, window=args.window, frequency_unit=args.frequency_unit,
                                  sided=args.sided, density=args.density, passes=args.passes)
+    if spectrum.omega.size > LARGE_SPECTRUM:
+        progress_printer(args)(f"{path}: {spectrum.omega.size} bins; the fit's time grows with them (--bin K "
+                               "averages K neighbouring bins first)")
     free = [n.strip() for n in args.free.split(",") if n.strip()] if args.free else None
     result = fit(spectrum, known=_known(args.known), free=free, band=_band(args.band) if args.band else None,
                  passes=args.passes, bin=args.bin, profile=not args.no_profile, correction=args.correction,
