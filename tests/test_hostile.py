@@ -27,7 +27,7 @@ from mdroll.roughness.line_grid import line_rms
 TINY = ["--set", "L=0.025", "--set", "dx=2.5e-5", "--device", "cpu", "--no-progress"]
 #: Library text that must never reach a user's error line.
 INTERNALS = ("codec can't decode", "allow_pickle", "Object arrays", "could not convert", "broadcast", "unpack", "math domain",
-             "Traceback", "Error:", "object has no attribute", "not subscriptable", "Eigenvalues")
+             "Traceback", "object has no attribute", "not subscriptable", "Eigenvalues")
 
 
 @pytest.fixture(autouse=True)
@@ -381,3 +381,71 @@ def test_library_warnings_stay_off_a_successful_run(tmp_path, capsys, monkeypatc
     monkeypatch.setattr(mdroll.plotting, "plot_psd", warning_plot)
     code, _, err = _main(capsys, "run", *TINY, "--realizations", "1", "--out", tmp_path / "o")
     assert code == 0 and err == []
+
+
+# ----------------------------------------------------------------------------- users' checks
+def _module(tmp_path, monkeypatch, name, text):
+    (tmp_path / f"{name}.py").write_text(text)
+    monkeypatch.chdir(tmp_path)
+    return name
+
+
+CHECK_TOML = 'name = "c"\nprediction = "math:sqrt"\nband = [1, 4]\n'
+CHECK_FILE_CASES = [
+    ("band a number", CHECK_TOML.replace("[1, 4]", "5"), "band = 5"),
+    ("band of three", CHECK_TOML.replace("[1, 4]", "[1, 2, 3]"), "[lo, hi], two numbers"),
+    ("band of texts", CHECK_TOML.replace("[1, 4]", '["a", "b"]'), "two numbers"),
+    ("allowance a text", CHECK_TOML + 'allowance = "5%"\n', "allowance = '5%'"),
+    ("allowance over 100 %", CHECK_TOML + "allowance = 1.5\n", "below 1 (100 %)"),
+    ("name a number", CHECK_TOML.replace('"c"', "3"), "name = 3"),
+    ("prediction a number", CHECK_TOML.replace('"math:sqrt"', "3"), "prediction = 3"),
+    ("params a text", CHECK_TOML + '[check.spec]\nparams = "L=1"\n', "must be a table"),
+    ("seed a text", CHECK_TOML + '[check.spec]\nseed = "x"\n', "seed must be an integer"),
+    ("whole_periods a number", CHECK_TOML + "whole_periods = 2\n", "true or false"),
+]
+
+
+@pytest.mark.parametrize("body,needle", [c[1:] for c in CHECK_FILE_CASES], ids=[c[0] for c in CHECK_FILE_CASES])
+def test_a_checks_file_value_of_the_wrong_shape_or_type_is_named(tmp_path, capsys, body, needle):
+    path = tmp_path / "checks.toml"
+    path.write_text("[[check]]\n" + body)
+    out = tmp_path / "out"
+    _refused(capsys, needle, "validate", "--checks", path, "--device", "cpu", "--out", out)
+    assert not out.exists()
+
+
+PROVIDER_CASES = [
+    ("sys.exit(0)", "import sys\ndef provider():\n    sys.exit(0)\n", "called sys.exit(0)"),
+    ("syntax error", "def provider(:\n    pass\n", "line 1: a syntax error"),
+    ("exit at import", "import sys\nsys.exit(0)\n", "called sys.exit(0)"),
+    ("returns a number", "def provider():\n    return 5\n", "returned 5"),
+    ("fails while yielding", "def provider():\n    yield 1 / 0\n", "ZeroDivisionError"),
+]
+
+
+@pytest.mark.parametrize("text,needle", [c[1:] for c in PROVIDER_CASES], ids=[c[0] for c in PROVIDER_CASES])
+def test_a_users_provider_never_ends_validate_as_a_success(tmp_path, capsys, monkeypatch, text, needle):
+    name = _module(tmp_path, monkeypatch, f"provider_{abs(hash(text))}", text)
+    _refused(capsys, needle, "validate", "--check", f"{name}:provider", "--device", "cpu", "--out", tmp_path / "o")
+
+
+def test_a_prediction_that_exits_is_an_error_not_a_pass(part):
+    from mdroll.validation import Band, Check
+    from mdroll.errors import PredictionError
+
+    def exits(x, params):
+        raise SystemExit(0)
+
+    result = EnsembleResult.load(part / "spectra.npz")
+    with pytest.raises(PredictionError, match=r"called sys.exit\(0\)"):
+        Check("c", None, exits, Band(1, 4)).evaluate(result)
+
+
+RELATIVE_CASES = [(-0.9, 2.0, False), (0.0004, 1.5, False), (1.05, 0.1, True), (0.95, 0.1, True), (1.2, 0.1, False)]
+
+
+@pytest.mark.parametrize("ratio,tolerance,passed", RELATIVE_CASES)
+def test_a_relative_check_passes_only_a_positive_ratio_within_a_testable_tolerance(ratio, tolerance, passed):
+    from mdroll.validation import CheckResult
+
+    assert CheckResult("c", "", ratio * 2.0, 2.0, tolerance, "relative", "-", "").passed is passed
