@@ -277,3 +277,41 @@ def test_any_profile_ends_in_exit_0_or_one_line(small_host, capsys, profile, dx,
         _check_outcome(capsys, args, out)
         if (out / "profile_psd.csv").exists():
             assert np.isfinite(np.loadtxt(out / "profile_psd.csv", delimiter=",", skiprows=2)).all()
+
+
+CHECK_VALUE = st.one_of(TOML_SCALAR, st.lists(TOML_SCALAR, max_size=3), st.sampled_from(["math:sqrt", "ratio", "q_min"]))
+CHECK_TABLE = st.dictionaries(
+    st.sampled_from(["name", "prediction", "comparison", "band", "band_unit", "whole_periods", "allowance", "k",
+                     "quantity", "paired", "equation", "unit", "note", "stray"]), CHECK_VALUE, max_size=6)
+
+
+def _toml_any(value) -> str:
+    return "[" + ", ".join(_toml_value(v) for v in value) + "]" if isinstance(value, list) else _toml_value(value)
+
+
+@FUZZ
+@given(tables=st.lists(st.tuples(CHECK_TABLE, st.dictionaries(st.sampled_from(["seed", "realizations", "mode", "params"]),
+                                                               CHECK_VALUE, max_size=2)), max_size=2),
+       providers=st.one_of(st.none(), CHECK_VALUE))
+def test_any_checks_file_ends_in_one_line_before_any_work(small_host, capsys, monkeypatch, tables, providers):
+    """A checks file of any keys and values of any type: refused in one line before an ensemble
+    runs (the ensemble runner is made to fail, so that a file read as sound shows)."""
+    import mdroll.cli.validate
+
+    monkeypatch.setattr(mdroll.cli.validate, "run_checks", lambda *a, **k: pytest.fail("a checks file was accepted"))
+    lines = [] if providers is None else [f"providers = {_toml_any(providers)}"]
+    for table, spec in tables:
+        table = {"name": "c", "prediction": "math:sqrt", "band": [1, 4], **table}
+        lines += ["[[check]]"] + [f"{k} = {_toml_any(v)}" for k, v in table.items()]
+        if spec:
+            lines += ["[check.spec]"] + [f"{k} = {_toml_any(v)}" for k, v in spec.items()]
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "checks.toml"
+        path.write_text("\n".join(lines) + "\n")
+        try:
+            code = cli.main(["validate", "--checks", str(path), "--device", "cpu", "--out", str(Path(tmp) / "o")])
+        except BaseException as exc:  # pytest.fail: only a sound file reaches the runner
+            assert "accepted" in str(exc)
+            return
+        err = capsys.readouterr().err.splitlines()
+        assert code == 2 and len(err) == 1 and err[0].startswith("mdroll: error: "), (lines, err)

@@ -449,3 +449,40 @@ def test_a_relative_check_passes_only_a_positive_ratio_within_a_testable_toleran
     from mdroll.validation import CheckResult
 
     assert CheckResult("c", "", ratio * 2.0, 2.0, tolerance, "relative", "-", "").passed is passed
+
+
+# ----------------------------------------------------------------------------- study records
+def _study_record(tmp_path, change):
+    """A copy of a recorded study (docs/studies/quick) with one field changed as a user might."""
+    source = Path(__file__).resolve().parents[1] / "docs" / "studies" / "quick" / "coupling" / "coupling.json"
+    record = json.loads(source.read_text())
+    text = change(record)
+    folder = tmp_path / "studies" / "coupling"
+    folder.mkdir(parents=True)
+    (folder / "coupling.json").write_text(text if isinstance(text, str) else json.dumps(record))
+    return tmp_path / "studies"
+
+
+STUDY_CASES = [
+    ("another schema", lambda r: json.dumps({"rows": []}), "lacks 'study'"),
+    ("truncated", lambda r: json.dumps(r)[:300], "not a JSON study record"),
+    ("claims a table", lambda r: r.update(claims={}), "claims = '{}', expected a list"),
+    ("claim without stderr", lambda r: r["claims"][0].pop("stderr") and None, "claims[0]. lacks 'stderr'"),
+    ("measured a text", lambda r: r["claims"][0].update(measured="1.0"), "claims[0].measured"),
+    ("verdicts uncounted", lambda r: r.update(verdicts={}), "verdicts must count"),
+    ("spec without mode", lambda r: r["ensembles"][0]["spec"].pop("mode") and None, "ensembles[0].spec. lacks 'mode'"),
+]
+
+
+@pytest.mark.parametrize("change,needle", [c[1:] for c in STUDY_CASES], ids=[c[0] for c in STUDY_CASES])
+def test_study_report_reads_records_through_a_checked_reader(tmp_path, capsys, change, needle):
+    folder = _study_record(tmp_path, change)
+    _refused(capsys, needle, "study", "report", folder, "--page", tmp_path / "page.md")
+    assert not (tmp_path / "page.md").exists()
+
+
+@pytest.mark.parametrize("page,needle", [("{tmp}", "is a directory"), ("{tmp}/none/page.md", "does not exist"),
+                                         ("{tmp}/" + "x" * 300 + ".md", "File name too long")])
+def test_study_report_page_that_cannot_be_written_is_one_line(tmp_path, capsys, page, needle):
+    folder = _study_record(tmp_path, lambda r: None)
+    _refused(capsys, needle, "study", "report", folder, "--page", page.format(tmp=tmp_path))

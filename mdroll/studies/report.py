@@ -8,7 +8,8 @@ import json
 from pathlib import Path
 
 from ..files import atomic_write
-from .core import DISAGREES
+from .core import AGREES, DISAGREES, REPORTED, UNRESOLVED
+from .records import read_record
 
 
 def _number(value, unit: str = "") -> str:
@@ -81,7 +82,7 @@ def load_records(folder) -> list[dict]:
     for name in STUDIES:
         path = folder / name / f"{name}.json"
         if path.is_file():
-            records.append(json.loads(path.read_text()))
+            records.append(read_record(path, (AGREES, DISAGREES, UNRESOLVED, REPORTED)))
     return records
 
 
