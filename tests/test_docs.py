@@ -226,7 +226,7 @@ def console(tmp_path_factory):
     script.chmod(0o755)
     python = bin_dir / "python"
     python.symlink_to(sys.executable)
-    env = dict(os.environ, PATH=f"{bin_dir}{os.pathsep}{os.environ['PATH']}", PYTHONPATH=str(ROOT),
+    env = dict(os.environ, PATH=f"{bin_dir}{os.pathsep}{os.environ['PATH']}", PYTHONPATH=os.pathsep.join([str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]),
                MPLBACKEND="agg", MDROLL_CACHE_DIR=str(tmp_path_factory.mktemp("cache")))
     return env
 
