@@ -1,9 +1,9 @@
 """The sweep's scaling on one device in its default form: force-only time against n under
 refinement (fixed L) and under rolling distance (fixed dx), with the exponents of
 ``time ~ n^p`` fitted as ``mdroll bench --full`` does, at the sizes of its sections for that
-device (``mdroll.bench.study.STUDIES``; periodic lines, as there), for the sweep alone: about a
+device (``mdroll.bench.study.SIZES``; periodic lines, as there), for the sweep alone: about a
 minute. On CUDA each section is timed twice: on the device's clock, as the study does
-(``mdroll.bench.study.device_timed``), and on the wall clock around the launch.
+(``mdroll.bench.clocks.device_timed``), and on the wall clock around the launch.
 
     python benchmarks/sweep_exponents.py --device cpu --out cpu_sweep_exponents.json
     python benchmarks/sweep_exponents.py --device cuda --out cuda_sweep_exponents.json
@@ -17,7 +17,7 @@ import json
 import numpy as np
 
 from mdroll import Params
-from mdroll.bench.study import STUDIES, fit_exponent, force_time
+from mdroll.bench.study import SIZES, fit_exponent, force_time
 from mdroll.devices import resolve_device
 from mdroll.provenance import environment
 
@@ -26,11 +26,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--out", default="sweep_exponents.json")
-    parser.add_argument("--repeats", type=int, default=STUDIES["full"].repeats)
+    parser.add_argument("--repeats", type=int, default=SIZES["full"].repeats)
     parser.add_argument("--realizations", type=int, default=None)
     args = parser.parse_args()
     device = resolve_device(args.device)
-    study = STUDIES["full"]
+    study = SIZES["full"]
     record = {"environment": environment(device), "algorithm": "sweep", "sections": {}}
     # CUDA: the study's device clock, and the wall clock around the launch beside it
     clocks = ("device", "wall") if device.startswith("cuda") else ("device",)

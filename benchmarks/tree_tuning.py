@@ -12,7 +12,7 @@ import argparse
 import json
 
 from mdroll import Params
-from mdroll.bench import STUDIES, fit_exponent, force_time
+from mdroll.bench import SIZES, fit_exponent, force_time
 from mdroll.devices import resolve_device
 from mdroll.provenance import environment
 
@@ -38,7 +38,7 @@ def main() -> None:
             point = force_time(thesis, "tree", thesis.n_real, device, args.repeats, "open", leaf_size, band_limit)
             record["thesis"].append(point)
             print(f"thesis leaf {leaf_size:>2} band_limit {band_limit:>7}: {point['force_s'] * 1e3:7.2f} ms", flush=True)
-    sizes, realizations = STUDIES["full"].sweeps(device)["refinement"]
+    sizes, realizations = SIZES["full"].sweeps(device)["refinement"]
     for leaf_size in args.refinement_leaf_sizes:
         for band_limit in args.band_limits:
             points = [force_time(p, "tree", realizations, device, args.repeats, "periodic", leaf_size, band_limit)

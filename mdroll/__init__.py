@@ -6,16 +6,16 @@ edge-incremental approximation; section 4) as Warp kernels on CPU and CUDA, the 
 (section 5) and ensemble-averaged spectra (section 6). All units SI.
 """
 
-from .devices import DeviceError, available_devices
+from .devices import available_devices
 from .forces.force import contact_force
 from .forces.registry import ALGORITHMS
 from .forces.steps import BOUNDARIES, step_range
 from .ensemble.lines import rough_lines
 from .ensemble.pipeline import EnsembleResult, run_ensemble
 from ._version import __version__
-from .errors import MdrollError
 from .ensemble.spec import EnsembleSpec, run_specs
-from .params import ParameterError, Params
+from .errors import DeviceError, MdrollError, ParameterError
+from .params import Params
 
 
 __all__ = [

@@ -1,5 +1,5 @@
 """Checks of the public API's arguments, made once where each enters (:func:`mdroll.contact_force`,
-:func:`mdroll.run_ensemble`): a bad value ends in one :class:`~mdroll.params.ParameterError`
+:func:`mdroll.run_ensemble`): a bad value ends in one :class:`~mdroll.errors.ParameterError`
 naming the argument, the value and what is allowed."""
 
 from __future__ import annotations
@@ -8,7 +8,8 @@ import math
 
 import numpy as np
 
-from .params import ParameterError, Params
+from .errors import ParameterError
+from .params import Params
 
 
 def check_params(params) -> Params:

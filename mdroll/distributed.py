@@ -1,19 +1,22 @@
 """Ensembles on Dask distributed: many specs, many workers, one answer.
 
 A list of :class:`~mdroll.ensemble.spec.EnsembleSpec` is cut into *work units* (a spec's slice of
-consecutive realizations, :meth:`EnsembleSpec.split`). Each unit runs as one Dask task on a
-worker, on that worker's device, and returns only binned accumulators: its
-:class:`~mdroll.ensemble.result.EnsembleResult` (per-bin mean PSDs and their standard errors,
-force sums, counts) — never a per-realization series. The client merges each spec's units in a
-fixed order (by first realization) with the exact pairwise merge of means and variances
-(:meth:`EnsembleResult.merge`, Chan et al.), so the result equals a one-process run to rounding
-(<= 1e-12 relative) whatever the partition and the number of workers: every realization derives
-from (seed, realization index) alone.
+consecutive realizations, :meth:`EnsembleSpec.split`) of whole batches of the workers' devices
+(:func:`default_unit_size`). Each unit runs as one Dask task on a worker, on that worker's device,
+and its :class:`~mdroll.ensemble.result.EnsembleResult` (per-bin mean PSDs and their standard
+errors, force sums, counts; never a per-realization series) stays on that worker. When all are
+done, each worker merges its units of each spec, the workers' partial results are merged in pairs
+on the workers, and the client receives one result per spec: the exact pairwise merge of means
+and variances (:meth:`EnsembleResult.merge`, Chan et al.), so the result equals a one-process run
+to rounding (<= 1e-12 relative) whatever the partition and the number of workers: every
+realization derives from (seed, realization index) alone.
 
-Faults. A worker that dies mid-unit loses only that unit's work: Dask reschedules it on another
-worker, and the client keeps each unit's result under its id, so nothing is counted twice or
-lost. With ``checkpoint=DIR`` every finished unit is written to ``DIR`` (atomically) as it
-arrives; a later run with the same specs reads them back and computes only the missing units.
+Faults. A worker that dies loses only its units: Dask runs them again on another worker (the
+finished ones too, their results being lost with it), each under its own key, so nothing is
+counted twice or lost. A lost scheduler ends the run with :class:`SchedulerLost`. With
+``checkpoint=DIR`` every worker writes each finished unit to ``DIR`` (atomically), next to a
+manifest of the specs and unit sizes; a later run with the same specs reads them back and
+computes only the missing units.
 
 Warp across processes. Workers are separate processes started by *spawn* (Dask's nanny never
 forks a process that holds a CUDA context), and each GPU worker is pinned to its GPU through
@@ -24,8 +27,10 @@ renames it into place, so concurrent compilation by several workers is safe.
 
 from __future__ import annotations
 
+import concurrent.futures
 import contextlib
 import json
+import logging
 import os
 import uuid
 from collections.abc import Iterable, Sequence
@@ -34,18 +39,23 @@ from pathlib import Path
 
 from tqdm.auto import tqdm
 
+from .devices import cpu_cores, resolve_device
+from .ensemble.batching import default_batch
 from .ensemble.result import EnsembleResult
 from .ensemble.spec import EnsembleSpec
-from .params import ParameterError
+from .errors import ParameterError, SchedulerLost
 
 # Dask's ``distributed`` is an optional dependency (the ``distributed`` extra): the functions that
 # need it import it, so that this module imports without it.
 
-#: Units per worker when the unit size is not given: small enough to balance the load and to
-#: lose little work when a worker dies, large enough that a unit fills a batch.
-UNITS_PER_WORKER = 4
+#: Work units per worker at most: two give a worker's second unit to a faster or surviving worker
+#: and lose at most half a worker's share when it dies, while the per-unit cost stays small
+#: against a unit of whole batches (docs/distributed.md, "Where the time goes").
+UNITS_PER_WORKER = 2
 #: A local cluster listens on the loopback interface only: it serves no one outside this machine.
 LOOPBACK = "127.0.0.1"
+#: The file of a checkpoint directory that names its run's specs and unit sizes.
+MANIFEST = "manifest.json"
 
 
 @dataclass(frozen=True)
@@ -62,20 +72,50 @@ class WorkUnit:
         return f"{self.spec_index}-{self.spec.first}-{self.spec.realizations}"
 
 
-def work_units(specs: Sequence[EnsembleSpec], unit_size: int) -> list[WorkUnit]:
-    """Every spec cut into units of at most ``unit_size`` consecutive realizations, in order."""
-    return [WorkUnit(i, part) for i, spec in enumerate(specs) for part in spec.split(unit_size)]
+def work_units(specs: Sequence[EnsembleSpec], sizes: int | Sequence[int]) -> list[WorkUnit]:
+    """Every spec cut into units of at most ``sizes`` (one for all, or one per spec) consecutive
+    realizations, in order."""
+    sizes = [sizes] * len(specs) if isinstance(sizes, int) else list(sizes)
+    return [WorkUnit(i, part) for i, (spec, size) in enumerate(zip(specs, sizes)) for part in spec.split(size)]
 
 
-def default_unit_size(specs: Sequence[EnsembleSpec], workers: int) -> int:
-    """About :data:`UNITS_PER_WORKER` units per worker over all specs (at least one realization)."""
-    total = sum(spec.realizations for spec in specs)
-    return max(1, -(-total // (UNITS_PER_WORKER * max(1, workers))))
+def default_unit_size(total: int, workers: int, batch: int) -> int:
+    """Realizations per unit for ``total`` realizations on ``workers`` workers whose devices run
+    ``batch`` realizations at once: each worker's share in whole batches, in at most
+    :data:`UNITS_PER_WORKER` equal units (one unit, one batch, when the share fits a batch)."""
+    share = -(-total // max(1, workers))
+    batches = -(-share // max(1, batch))
+    return max(1, -(-share // min(UNITS_PER_WORKER, batches)))
 
 
-def run_unit(spec: EnsembleSpec, device: str, options: dict) -> EnsembleResult:
-    """The task a worker runs: one unit's ensemble, on the worker's own device."""
-    return spec.run(device=device, progress=False, **options)
+def worker_batches(specs: Sequence[EnsembleSpec], device: str, options: dict, checkpoint: str | None) -> list[int]:
+    """Run on each worker before the units: the realizations its device runs at once for each
+    spec (``options``' batch, else from its free memory), and the check that it sees the
+    checkpoint directory."""
+    if checkpoint is not None and not (Path(checkpoint) / MANIFEST).is_file():
+        raise ParameterError(f"checkpoint {checkpoint} is not visible to every worker: on a cluster of several "
+                             "machines it must be on a file system that all of them share")
+    if options.get("batch") is not None:
+        return [options["batch"]] * len(specs)
+    device = resolve_device(device)
+    return [default_batch(s.params, device, options.get("memory_limit"), wanted=s.realizations) for s in specs]
+
+
+def run_unit(spec: EnsembleSpec, device: str, options: dict, checkpoint: str | None = None,
+             uid: str = "") -> EnsembleResult:
+    """The task a worker runs: one unit's ensemble, on the worker's own device. Its result stays
+    on the worker (:func:`merge_results` reduces it there); with a checkpoint the worker also
+    writes it to ``checkpoint/unit-<uid>.npz`` (atomically)."""
+    result = spec.run(device=device, progress=False, **options)
+    if checkpoint is not None:
+        result.save(Path(checkpoint) / f"unit-{uid}.npz")
+    return result
+
+
+def merge_results(*results: EnsembleResult) -> EnsembleResult:
+    """One result of several of one spec (:meth:`EnsembleResult.merge`; one result is itself):
+    the reduction's task on the workers, and its last step on the client."""
+    return results[0] if len(results) == 1 else EnsembleResult.merge(list(results))
 
 
 class DaskRunner:
@@ -87,9 +127,10 @@ class DaskRunner:
     client : dask.distributed.Client
         The cluster's client (:func:`local_cluster`, or ``Client("tcp://host:8786")``).
     unit_size : int, optional
-        Realizations per work unit; default :func:`default_unit_size`.
+        Realizations per work unit; default :func:`default_unit_size` from the workers' batches.
     checkpoint : path, optional
-        A directory that receives every finished unit (resumable).
+        A directory that receives every finished unit (resumable); the workers write it, so on
+        several machines it must be on a shared file system.
     """
 
     def __init__(self, client, unit_size: int | None = None, checkpoint=None):
@@ -97,7 +138,7 @@ class DaskRunner:
             raise ParameterError(f"unit_size = {unit_size!r} is not allowed: it must be a positive integer")
         self.client = client
         self.unit_size = unit_size
-        self.checkpoint = None if checkpoint is None else Path(checkpoint)
+        self.checkpoint = None if checkpoint is None else Path(checkpoint).absolute()
 
     def workers(self) -> int:
         """The number of workers the scheduler knows now."""
@@ -105,63 +146,117 @@ class DaskRunner:
 
     def run_specs(self, specs: Iterable[EnsembleSpec], device: str = "auto", progress: bool = False,
                   **options) -> list[EnsembleResult]:
-        """Every spec's result, merged from its units in a fixed order (see the module docstring)."""
+        """Every spec's result (see the module docstring): units of whole batches run on the
+        workers, reduced there, and shipped to the client once per worker and spec."""
         from distributed import as_completed
 
         specs = list(specs)
-        units = work_units(specs, self.unit_size or default_unit_size(specs, self.workers()))
-        done = self._load_checkpoint(specs, units)
-        todo = [u for u in units if u.uid not in done]
-        bar = _progress(len(units), progress)
-        bar.update(len(units) - len(todo))
+        checkpoint = None if self.checkpoint is None else str(self.checkpoint)
         run = uuid.uuid4().hex[:12]  # keys of this call only: a cancelled earlier run's keys never collide
-        futures = {self.client.submit(run_unit, u.spec, device, options, key=f"mdroll-unit-{run}-{u.uid}"): u
-                   for u in todo}
+        futures = {}
         try:
-            for future in as_completed(futures):
-                unit = futures[future]
-                result = future.result()  # re-raises a unit's error (a ParameterError names its parameter)
-                done[unit.uid] = result
-                self._save_unit(unit, result)
-                bar.update(1)
+            saved = None if self.checkpoint is None else self._manifest(specs)
+            batches = self._batches(specs, device, options, checkpoint, run)
+            total = sum(s.realizations for s in specs)
+            sizes = saved or [self.unit_size or default_unit_size(total, self.workers(), b) for b in batches]
+            if self.checkpoint is not None and saved is None:
+                self._manifest(specs, sizes)
+            units = work_units(specs, sizes)
+            done = self._load_checkpoint(units)
+            todo = [u for u in units if u.uid not in done]
+            bar = _progress(len(units), progress)
+            bar.update(len(units) - len(todo))
+            for u in todo:
+                unit_options = options if "batch" in options or "memory_limit" in options else {
+                    **options, "batch": min(batches[u.spec_index], u.spec.realizations)}
+                future = self.client.submit(run_unit, u.spec, device, unit_options, checkpoint, u.uid,
+                                            key=f"mdroll-unit-{run}-{u.uid}")
+                futures[future] = u
+            try:
+                for future in as_completed(futures):
+                    if future.status != "finished":
+                        future.result()  # re-raises a unit's error (a ParameterError names its parameter)
+                    bar.update(1)
+            finally:
+                bar.close()
+            parts = self._reduce_on_workers(futures, run)
+        except (OSError, TimeoutError, concurrent.futures.CancelledError) as exc:
+            if self.client.status == "running":  # the scheduler is there: not a lost connection
+                raise
+            kept = f"; the finished units are kept in {checkpoint} (resume from them)" if checkpoint else ""
+            raise SchedulerLost(f"lost the Dask scheduler at {self.client.scheduler.address} "
+                                f"({type(exc).__name__}){kept}") from None
         finally:
-            bar.close()
             for future in futures:  # after an error or an interrupt: stop what is still queued
                 if not future.done():
                     future.cancel()
-        return [EnsembleResult.merge([done[u.uid] for u in units if u.spec_index == i]) for i in range(len(specs))]
+        results = []
+        for i in range(len(specs)):
+            mine = ([parts[i]] if i in parts else []) + [done[u.uid] for u in units
+                                                         if u.spec_index == i and u.uid in done]
+            merged = merge_results(*mine)
+            merged.realizations = sorted(merged.realizations)
+            results.append(merged)
+        return results
 
-    # -- checkpoint: one file per finished unit, and a manifest naming the run's specs
-    def _load_checkpoint(self, specs, units) -> dict:
+    def _batches(self, specs, device, options, checkpoint, run) -> list[int]:
+        """Each spec's batch: the smallest over the workers (:func:`worker_batches`)."""
+        from distributed import wait
+
+        self.client.wait_for_workers(1)
+        workers = list(self.client.scheduler_info()["workers"])
+        probes = [self.client.submit(worker_batches, specs, device, options, checkpoint, workers=[w],
+                                     allow_other_workers=True, key=f"mdroll-batches-{run}-{n}")
+                  for n, w in enumerate(workers)]
+        wait(probes)
+        return [min(column) for column in zip(*self.client.gather(probes))]
+
+    def _reduce_on_workers(self, futures: dict, run: str) -> dict:
+        """Each worker's units of each spec merged on that worker, then the workers' partial
+        results merged in pairs on the workers (a tree: log2 of the workers' number of steps, each
+        moving one partial result between two workers) down to two, which the client receives at
+        once and merges: one result per spec. A lost worker's units are computed again by Dask,
+        from their tasks."""
+        holders = self.client.who_has(list(futures))
+        groups: dict = {}
+        for future, unit in futures.items():
+            where = (holders.get(future.key) or [None])[0]
+            groups.setdefault((unit.spec_index, where), []).append(future)
+        level: dict = {}
+        for n, ((spec_index, where), group) in enumerate(groups.items()):
+            level.setdefault(spec_index, []).append(group[0] if len(group) == 1 else self.client.submit(
+                merge_results, *group, workers=None if where is None else [where], allow_other_workers=True,
+                key=f"mdroll-merge-{run}-{n}"))
+        step = 0
+        while any(len(parts) > 2 for parts in level.values()):  # the last two go to the client at once
+            step += 1
+            level = {i: [self.client.submit(merge_results, *parts[k:k + 2], key=f"mdroll-merge-{run}-{step}-{i}-{k}")
+                         if k + 1 < len(parts) else parts[k] for k in range(0, len(parts), 2)]
+                     for i, parts in level.items()}
+        return {i: merge_results(*self.client.gather(parts)) for i, parts in level.items()}
+
+    # -- checkpoint: one file per finished unit (written by the workers), and a manifest of the
+    # run's specs and unit sizes (a resumed run keeps them, whatever its number of workers)
+    def _manifest(self, specs, sizes=None) -> list[int] | None:
+        """Write the manifest (the sizes once they are known); return the sizes it holds."""
+        self.checkpoint.mkdir(parents=True, exist_ok=True)
+        manifest = self.checkpoint / MANIFEST
+        planned = [s.as_dict() for s in specs]
+        saved = json.loads(manifest.read_text()) if manifest.exists() else {"specs": planned, "sizes": None}
+        if saved.get("specs") != planned:
+            raise ParameterError(f"checkpoint {self.checkpoint} belongs to another distributed run "
+                                 "(its specs differ): use another directory")
+        if saved.get("sizes") is None:
+            saved["sizes"] = sizes
+            _write_atomic(manifest, json.dumps(saved, indent=1).encode())
+        return saved["sizes"]
+
+    def _load_checkpoint(self, units) -> dict:
+        """The finished units' results, by id."""
         if self.checkpoint is None:
             return {}
-        self.checkpoint.mkdir(parents=True, exist_ok=True)
-        manifest = self.checkpoint / "manifest.json"
-        planned = {"specs": [s.as_dict() for s in specs], "units": [u.uid for u in units]}
-        if manifest.exists():
-            saved = json.loads(manifest.read_text())
-            if saved != planned:
-                raise ParameterError(f"checkpoint {self.checkpoint} belongs to another distributed run "
-                                     "(its specs or units differ): use another directory")
-        else:
-            _write_atomic(manifest, json.dumps(planned, indent=1).encode())
-        done = {}
-        for unit in units:
-            path = self._unit_path(unit)
-            if path.exists():
-                done[unit.uid] = EnsembleResult.load(path)
-        return done
-
-    def _unit_path(self, unit: WorkUnit) -> Path:
-        return self.checkpoint / f"unit-{unit.uid}.npz"
-
-    def _save_unit(self, unit: WorkUnit, result: EnsembleResult) -> None:
-        if self.checkpoint is None:
-            return
-        path = self._unit_path(unit)
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp.npz")
-        result.save(tmp)
-        os.replace(tmp, path)
+        return {u.uid: EnsembleResult.load(path) for u in units
+                if (path := self.checkpoint / f"unit-{u.uid}.npz").exists()}
 
 
 def _write_atomic(path: Path, data: bytes) -> None:
@@ -175,14 +270,14 @@ def _progress(total: int, enabled: bool):
     return tqdm(total=total, unit="unit", desc="work units", dynamic_ncols=True, disable=not enabled)
 
 
-def local_cluster(workers: int, device: str = "auto"):
+def local_cluster(workers: int, device: str = "auto", verbose: bool = False):
     """A ``dask.distributed.Client`` on a cluster of ``workers`` processes on this machine.
 
-    ``device`` ``"cpu"``: processes of one thread each, sharing the cores. A CUDA device (or
+    ``device`` ``"cpu"``: processes of one thread each, at most one per core. A CUDA device (or
     ``"auto"`` where GPUs are present): one process per GPU, ``workers`` at most the number of
     GPUs, each pinned to its GPU by ``CUDA_VISIBLE_DEVICES`` before Warp starts in it (so each
     worker's ``cuda:0`` is its own GPU). ``dask-cuda``'s ``LocalCUDACluster`` does the same; this
-    spec needs only ``distributed``.
+    spec needs only ``distributed``. Dask's logs below warnings are shown only when ``verbose``.
     """
     from distributed import Client, Nanny, Scheduler, SpecCluster
 
@@ -192,23 +287,28 @@ def local_cluster(workers: int, device: str = "auto"):
     if device.startswith("cuda") and gpus == 0:
         raise ParameterError(f"device = {device!r}: no GPU is visible to start GPU workers on")
     if gpus and workers > gpus:
-        raise ParameterError(f"workers = {workers} is not allowed: this machine has {gpus} GPU(s), one worker each")
+        raise ParameterError(f"workers = {workers} is not allowed: at most {gpus}, one worker per GPU of this machine")
+    if not gpus and workers > cpu_cores():
+        raise ParameterError(f"workers = {workers} is not allowed: at most {cpu_cores()}, one CPU worker per core "
+                             "this process may use")
+    level = logging.INFO if verbose else logging.WARNING
     visible = os.environ.get("CUDA_VISIBLE_DEVICES")
     ordinals = visible.split(",") if visible else [str(i) for i in range(gpus)]
     spec = {}
     for w in range(workers):
-        env = {"OMP_NUM_THREADS": "1"}
+        env = {"OMP_NUM_THREADS": "1", "DASK_LOGGING__DISTRIBUTED": logging.getLevelName(level).lower()}
         env["CUDA_VISIBLE_DEVICES"] = ordinals[w] if gpus else ""
         spec[f"mdroll-{w}"] = {"cls": Nanny, "options": {"nthreads": 1, "env": env, "memory_limit": 0,
-                                                          "host": LOOPBACK, "dashboard": False}}
+                                                          "host": LOOPBACK, "dashboard": False,
+                                                          "silence_logs": level}}
     scheduler = {"cls": Scheduler, "options": {"host": LOOPBACK, "dashboard": False,
                                                    "dashboard_address": f"{LOOPBACK}:0"}}
-    cluster = SpecCluster(workers=spec, scheduler=scheduler, silence_logs=40)
+    cluster = SpecCluster(workers=spec, scheduler=scheduler, silence_logs=level)
     return Client(cluster)
 
 
 @contextlib.contextmanager
-def connect(workers: int | None = None, scheduler: str | None = None, device: str = "auto"):
+def connect(workers: int | None = None, scheduler: str | None = None, device: str = "auto", verbose: bool = False):
     """A client for the duration of a ``with`` block: a :func:`local_cluster` of ``workers``
     processes (closed at the end), or the existing cluster at ``scheduler`` (an address such as
     ``tcp://host:8786``; left running)."""
@@ -217,14 +317,22 @@ def connect(workers: int | None = None, scheduler: str | None = None, device: st
     if (workers is None) == (scheduler is None):
         raise ParameterError("give either workers (a local cluster) or scheduler (an existing cluster), not both")
     if scheduler is not None:
+        # the client's own reports (a lost scheduler's reconnection attempts, with tracebacks)
+        # only when verbose: a lost scheduler ends in one SchedulerLost line
+        quiet = logging.getLogger("distributed")
+        before = quiet.level
+        quiet.setLevel(logging.INFO if verbose else logging.CRITICAL)
         try:
-            client = Client(scheduler, timeout="10s")
-        except OSError as exc:
-            raise ParameterError(f"scheduler = {scheduler!r}: cannot connect ({exc})") from None
-        with client:
-            yield client
+            try:
+                client = Client(scheduler, timeout="10s")
+            except OSError as exc:
+                raise ParameterError(f"scheduler = {scheduler!r}: cannot connect ({exc})") from None
+            with client:
+                yield client
+        finally:
+            quiet.setLevel(before)
         return
-    client = local_cluster(workers, device)
+    client = local_cluster(workers, device, verbose)
     try:
         yield client
     finally:
@@ -234,9 +342,9 @@ def connect(workers: int | None = None, scheduler: str | None = None, device: st
 
 def saved_specs(checkpoint) -> list[EnsembleSpec]:
     """The specs of the distributed run whose units are in the directory ``checkpoint``."""
-    manifest = Path(checkpoint) / "manifest.json"
+    manifest = Path(checkpoint) / MANIFEST
     if not manifest.is_file():
-        raise ParameterError(f"{checkpoint}: no manifest.json of a distributed run there to continue from")
+        raise ParameterError(f"{checkpoint}: no {MANIFEST} of a distributed run there to continue from")
     return [EnsembleSpec.from_dict(d) for d in json.loads(manifest.read_text())["specs"]]
 
 

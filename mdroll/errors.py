@@ -33,3 +33,8 @@ class PredictionError(ParameterError):
 
 class UsageError(MdrollError):
     """Bad command-line input: an option, a file or a folder that cannot be used."""
+
+
+class SchedulerLost(MdrollError):
+    """A distributed run lost its Dask scheduler; the message names its address and where the
+    finished work is kept."""

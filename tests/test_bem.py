@@ -17,7 +17,7 @@ from mdroll import physics
 from mdroll.bem import elliptical_ratio, extruded, generator, hertz_elliptical, roll, self_affine, solve
 from mdroll.bem.halfspace import HalfSpace, love_coefficient
 from mdroll.bem.hertz import sphere_errors
-from mdroll.params import ParameterError
+from mdroll.errors import ParameterError
 
 E_STAR = physics.effective_modulus(210e9, 0.3)
 R = 0.5

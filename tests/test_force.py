@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 from reference import direct_force, psd, to_numpy
 
-from mdroll import ParameterError, Params, contact_force, rough_lines, step_range
+from mdroll.errors import ParameterError
+from mdroll import Params, contact_force, rough_lines, step_range
 from mdroll.devices import to_warp
 from mdroll.forces.registry import REGISTRY
 

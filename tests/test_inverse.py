@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import mdroll
-from mdroll import ParameterError
+from mdroll.errors import ParameterError
 from mdroll.cli import main
 from mdroll.inverse import Spectrum, expected_psd, fit, from_result, read_spectrum, read_table, table_spectrum
 from mdroll.inverse.forward_model import Setting, lambda_A

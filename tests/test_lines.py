@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from reference import psd, rough_line, to_numpy
 
-from mdroll import ParameterError, Params, rough_lines
+from mdroll.errors import ParameterError
+from mdroll import Params, rough_lines
 
 P = Params(L=0.1, dx=10e-6, H=0.7)
 

@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from mdroll import ParameterError, Params
+from mdroll.errors import ParameterError
+from mdroll import Params
 
 
 def test_defaults_and_derived_against_hand_values():

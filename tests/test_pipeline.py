@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from reference import direct_force, psd, to_numpy
 
-from mdroll import EnsembleResult, ParameterError, Params, contact_force, rough_lines, run_ensemble, step_range
+from mdroll.errors import ParameterError
+from mdroll import EnsembleResult, Params, contact_force, rough_lines, run_ensemble, step_range
 from mdroll.forces.registry import default_algorithm
 from mdroll.ensemble.pipeline import H_BOUND_SIGMAS
 

@@ -23,7 +23,7 @@ from mdroll.cli.run import RUN_OUTPUTS
 from mdroll.ensemble import batching, checkpoint as checkpoint_module, pipeline, validity
 from mdroll.forces.indenter import reach
 from mdroll.ensemble.checkpoint import CHECKPOINT, read_checkpoint
-from mdroll.ensemble.pipeline import NonFiniteError
+from mdroll.errors import NonFiniteError
 
 ROOT = Path(__file__).resolve().parents[1]
 P = Params(L=0.05, n_real=6)

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from scipy import integrate, special
 
-from mdroll import EnsembleSpec, ParameterError, Params, physics, rough_lines
+from mdroll.errors import ParameterError
+from mdroll import EnsembleSpec, Params, physics, rough_lines
 from mdroll.cli import main
 from mdroll.ensemble.psd import psd_rows, to_host
 from mdroll.railway import studies

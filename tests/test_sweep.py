@@ -286,7 +286,7 @@ def test_band_beyond_the_streams_int32_sums_runs_sequentially(device):
     form, equal to the tree; the stream asked for there, a form that does not exist, a stream
     asked to write into a strided ``out``, or the delay line asked for where its ring cannot
     hold a spring's reach, are refused with one clear line, before the kernel runs."""
-    from mdroll import ParameterError
+    from mdroll.errors import ParameterError
 
     a = Params().a
     p = Params(L=4.2 * a, dx=a / (1.2 * 16383))  # a band of ~19,700 springs a side

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from mdroll import ParameterError, Params, physics
+from mdroll.errors import ParameterError
+from mdroll import Params, physics
 from mdroll.track import (PRESETS, Track, band_levels, chain_for_params, continuous_decay_rate,
                           continuous_receptance, cut_on_frequencies, decay_rate, discrete_receptance,
                           floquet_multipliers, iso3095_decay_limit, linear_chain, pinned_pinned_frequency,

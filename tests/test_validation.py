@@ -17,7 +17,8 @@ from reference import psd, to_numpy
 from mdroll import EnsembleSpec, Params, contact_force, physics, rough_lines
 from mdroll.forces import registry as algorithms
 from mdroll.ensemble.measure import band_sum, paired_ratio, period_bands
-from mdroll.validation import Band, Check, CheckResult, EnsembleSource, PredictionError
+from mdroll.errors import PredictionError
+from mdroll.validation import Band, Check, CheckResult, EnsembleSource
 from mdroll.validation.checks import SIZES, Context, check_exact_algorithms
 from mdroll.validation.references import edge_quadratic_force
 from mdroll.validation.report import format_table, slug
@@ -178,7 +179,7 @@ def test_mdroll_validate_quick_passes_and_writes_outputs(tmp_path):
                            "--no-progress", "--no-cache"], capture_output=True, text=True, cwd=ROOT, timeout=900)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     record = json.loads((out / "validation.json").read_text())
-    assert record["passed"] and record["size"] == "quick" and record["device_name"]
+    assert record["passed"] and record["size"] == "quick" and record["environment"]["device_name"]
     names = [c["name"] for c in record["checks"]]
     exact = [n for n, e in algorithms.REGISTRY.items() if e.exact and n != "direct"]
     for needle in [f"{n} == direct" for n in exact] + [

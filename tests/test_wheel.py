@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from mdroll import ParameterError
+from mdroll.errors import ParameterError
 from mdroll.wheel import PRESETS, STANDARD_920_MODES, Wheel
 
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..params import ParameterError
+from ..errors import ParameterError
 from .halfspace import HalfSpace
 from .solver import (MAX_ITERATIONS, TOLERANCE, array_module, check_problem, check_stopping, constrained_cg,
                      indenter_gap, initial_pressure, summarize, to_host)

@@ -26,8 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..devices import DeviceError
-from ..params import ParameterError
+from ..errors import DeviceError, ParameterError
 from ..physics import hertz_indentation
 from .halfspace import HalfSpace
 
@@ -59,7 +58,7 @@ class Contact:
 def array_module(device: str):
     """``(xp, context)`` for a device name: NumPy and a null context on ``"cpu"``; CuPy (imported
     here, lazily) and its device context on ``"cuda"`` / ``"cuda:N"``. Raises
-    :class:`mdroll.params.ParameterError` for another name, :class:`mdroll.devices.DeviceError`
+    :class:`mdroll.errors.ParameterError` for another name, :class:`mdroll.errors.DeviceError`
     when CuPy is missing."""
     if device == "cpu":
         return np, contextlib.nullcontext()

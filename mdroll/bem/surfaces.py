@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..params import ParameterError
+from ..errors import ParameterError
 from ..physics import TWO_PI
 
 

@@ -1,26 +1,24 @@
-"""``mdroll bench``: the scaling study of the force algorithms (:mod:`.study`) and its table and
-plot (:mod:`.report`)."""
+"""``mdroll bench``: the scaling study of the force algorithms (:mod:`.study`), its clocks
+(:mod:`.clocks`) and its table and plot (:mod:`.report`)."""
 
-from .report import expected_exponent, format_table, plot_study, refinement_note
+from .clocks import HOLD_S, device_timed, timed
+from .report import expected_exponent, format_table, plot_study, refinement_note, study_figure
 from .study import (
-    HOLD_S,
-    STUDIES,
-    StudySize,
+    SIZES,
+    ScalingSize,
     compile_time,
-    device_timed,
     fit_exponent,
     force_time,
     memory_per_realization,
     point_limit,
     run_study,
     thesis_scale,
-    timed,
 )
 
 __all__ = [
     "HOLD_S",
-    "STUDIES",
-    "StudySize",
+    "SIZES",
+    "ScalingSize",
     "compile_time",
     "device_timed",
     "expected_exponent",
@@ -32,6 +30,7 @@ __all__ = [
     "point_limit",
     "refinement_note",
     "run_study",
+    "study_figure",
     "thesis_scale",
     "timed",
 ]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..experiments import Figure, text_table, write_figure
 from ..forces.registry import REGISTRY
 
 
@@ -28,14 +29,15 @@ def refinement_note(name: str) -> str:
 
 def format_table(record: dict) -> str:
     """The fitted exponents, the CPU-vs-CUDA ratios and the stage breakdowns as text."""
-    lines = ["scaling exponents (time ~ n^p, least squares on log-log, +- standard error)"]
+    rows = []
     for section, per_device in record["fits"].items():
         for device, per_alg in per_device.items():
             for alg, fit in per_alg.items():
                 expected = expected_exponent(section, alg)
                 note = f"expected ~{expected:g}" if expected is not None else refinement_note(alg)
-                lines.append(f"  {section:<10} {device:<7} {alg:<6} p = {fit['exponent']:.3f} +- {fit['stderr']:.3f}"
-                             f"   ({note})")
+                rows.append((section, device, alg, f"{fit['exponent']:.3f}", f"+- {fit['stderr']:.3f}", note))
+    lines = ["scaling exponents (time ~ n^p, least squares on log-log, +- standard error)",
+             text_table(("section", "device", "algorithm", "p", "stderr", "expected"), rows, align="lllrrl")]
     for row in record["cpu_vs_cuda"]:
         speed = ", ".join(f"{k[8:]} {v:.0f}x" for k, v in row.items() if k.startswith("speedup_"))
         lines.append(f"  cpu vs cuda {row['algorithm']:<6} n = {row['n']}, R = {row['realizations']}: {speed}")
@@ -48,35 +50,39 @@ def format_table(record: dict) -> str:
     return "\n".join(lines)
 
 
-def plot_study(record: dict, path) -> None:
-    """Log-log time vs n with the fitted lines: one colour per algorithm, solid CUDA, dashed CPU."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+def study_figure(record: dict) -> Figure:
+    """Log-log time vs n with the fitted lines: one colour per algorithm, solid CUDA, dashed CPU;
+    one panel per sweep (refinement, distance)."""
     sections = [s for s in ("refinement", "distance") if record[s]]
-    fig, axes = plt.subplots(1, len(sections), figsize=(6 * len(sections), 4.5), layout="constrained", squeeze=False)
     names = [n for entry in REGISTRY.values() for n in (entry.name, *(v.name for v in entry.bench_variants))]
     colours = {name: f"C{i}" for i, name in enumerate(names)}
-    for ax, section in zip(axes[0], sections):
-        for device in sorted({r["device"] for r in record[section]}):
-            for alg in colours:
-                pts = [r for r in record[section] if r["device"] == device and r["algorithm"] == alg]
-                if not pts:
-                    continue
-                n = np.array([r["n"] for r in pts], float)
-                t = np.array([r["force_s"] for r in pts])
-                style = "--" if device == "cpu" else "-"
-                ax.loglog(n, t, "o", color=colours[alg], ms=4)
-                fit = record["fits"].get(section, {}).get(device, {}).get(alg)
-                if fit:
-                    c = np.mean(np.log(t) - fit["exponent"] * np.log(n))
-                    ax.loglog(n, np.exp(c) * n ** fit["exponent"], style, color=colours[alg],
-                              label=f"{alg} {device}: n^{fit['exponent']:.2f}")
-        ax.set_xlabel("n (points per line)")
-        ax.set_ylabel("force time (s)")
-        ax.set_title("refinement at fixed L" if section == "refinement" else "rolling distance at fixed dx")
-        ax.legend(fontsize=7)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+
+    def draw(fig):
+        axes = fig.subplots(1, len(sections), squeeze=False)
+        for ax, section in zip(axes[0], sections):
+            for device in sorted({r["device"] for r in record[section]}):
+                for alg in colours:
+                    pts = [r for r in record[section] if r["device"] == device and r["algorithm"] == alg]
+                    if not pts:
+                        continue
+                    n = np.array([r["n"] for r in pts], float)
+                    t = np.array([r["force_s"] for r in pts])
+                    style = "--" if device == "cpu" else "-"
+                    ax.loglog(n, t, "o", color=colours[alg], ms=4)
+                    fit = record["fits"].get(section, {}).get(device, {}).get(alg)
+                    if fit:
+                        c = np.mean(np.log(t) - fit["exponent"] * np.log(n))
+                        ax.loglog(n, np.exp(c) * n ** fit["exponent"], style, color=colours[alg],
+                                  label=f"{alg} {device}: n^{fit['exponent']:.2f}")
+            ax.set_xlabel("n (points per line)")
+            ax.set_ylabel("force time (s)")
+            ax.set_title("refinement at fixed L" if section == "refinement" else "rolling distance at fixed dx")
+            ax.legend(fontsize=7)
+
+    return Figure("bench", "Force time against n per algorithm and device, with the fitted exponents", draw,
+                  size=(6 * len(sections), 4.5), dpi=110)
+
+
+def plot_study(record: dict, path) -> None:
+    """Write :func:`study_figure` as PNG to ``path``."""
+    write_figure(study_figure(record), path)

@@ -23,25 +23,26 @@ Its table and plot: :mod:`mdroll.bench.report`.
 from __future__ import annotations
 
 import math
-import statistics
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..devices import resolve_device, synchronize, to_warp, usable_devices, warp
-from ..forces.force import force_command
-from ..forces.registry import ALGORITHMS, REGISTRY
 from ..ensemble.lines import rough_lines
 from ..ensemble.pipeline import H_BOUND_SIGMAS, MODES, run_ensemble
+from ..experiments import Ladder, provenance
+from ..forces.force import force_command
 from ..forces.prepare import prepare_lines
 from ..forces.prepared import DEFAULT_BAND_LIMIT, DEFAULT_LEAF_SIZE
+from ..forces.registry import ALGORITHMS, REGISTRY
 from ..params import Params
+from .clocks import CLOCKS, device_timed, timed
 
 
 @dataclass(frozen=True)
-class StudySize:
-    """Sizes of one study. ``refinement``: (L in m, log2 n values, realizations); ``distance``:
+class ScalingSize:
+    """The scaling study's parameters on one rung of the ladder (:data:`SIZES`). ``refinement``: (L in m, log2 n values, realizations); ``distance``:
     (log2 n values at the default dx, realizations); ``ensemble``: (log2 n, R values);
     ``cpu_refinement`` / ``cpu_distance``: the CPU's own (smaller) sweeps, default the same."""
 
@@ -72,83 +73,22 @@ class StudySize:
         return self.cuda_realizations.get(section, {}).get(algorithm, reps) if device.startswith("cuda") else reps
 
 
-STUDIES = {
-    # minutes on a 2-core CPU
-    "quick": StudySize(repeats=3, refinement=(0.05, (12, 13, 14, 15, 16), 8), distance=((14, 15, 16, 17, 18), 4),
+SIZES = Ladder(
+    # minutes on a CPU
+    quick=ScalingSize(repeats=3, refinement=(0.05, (12, 13, 14, 15, 16), 8), distance=((14, 15, 16, 17, 18), 4),
                        ensemble=(15, (1, 2, 4, 8, 16)), compare=(15, 4), stages=Params(L=0.2, n_real=8), thesis=False),
-    # the GPU machine: CUDA sizes large enough to fill the GPU (tens of millions of steps), the
-    # CPU (one core per launch) its own smaller sweeps
-    "full": StudySize(repeats=5, refinement=(0.25, (17, 18, 19, 20, 21, 22), 64), distance=((16, 17, 18, 19, 20, 21, 22), 64),
+    # a GPU: CUDA sizes large enough to fill it (tens of millions of steps), the CPU (one core per
+    # launch) its own smaller sweeps
+    full=ScalingSize(repeats=5, refinement=(0.25, (17, 18, 19, 20, 21, 22), 64), distance=((16, 17, 18, 19, 20, 21, 22), 64),
                       ensemble=(18, (1, 4, 16, 64, 256, 1024)), compare=(18, 64), stages=Params(L=5.24288, n_real=300),
                       thesis=True, cpu_refinement=(0.25, (13, 14, 15, 16, 17, 18), 1),
                       cpu_distance=((14, 15, 16, 17, 18, 19, 20, 21, 22), 1),
-                      # edge at 64 x 2^16 takes ~35 us, tree ~0.2 ms: near the ~20 us of a
-                      # launch and its clock, they pulled the fitted slopes below 1 (distance
-                      # n^0.75 and n^0.82 in the v5 study); 256 lines keep every size well above.
-                      # So for the sweep's stream (0.11 ms at 64 x 2^16: distance n^0.86)
+                      # the fast forms' smallest launches at 64 lines come near the latency of a
+                      # launch and of its clock, which flattens the fitted slopes; 256 lines keep
+                      # every size well above them (docs/performance.md)
                       cuda_realizations={"refinement": {"edge": 256, "sweep": 256},
                                          "distance": {"edge": 256, "tree": 256, "sweep": 256}}),
-}
-
-
-def timed(fn, device: str, repeats: int, setup=None) -> tuple[float, list[float]]:
-    """Median and all wall times (s) of ``fn(setup(i))`` for i in range(repeats): ``setup``
-    makes fresh inputs outside the clock (the previous ones are dropped first, so two sets never
-    share the device); the device is synchronized before each clock read."""
-    times = []
-    for i in range(repeats):
-        arg = None  # the previous inputs go before the next are made
-        arg = setup(i) if setup else None
-        synchronize(device)
-        t0 = time.perf_counter()
-        fn(arg) if setup else fn()
-        synchronize(device)
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times), times
-
-
-#: On CUDA a force launch is timed on the device's clock: events recorded around it, enqueued
-#: behind a kernel that holds the stream this long (s), so that the host's time to enqueue the
-#: launch and the events (~15-20 us with Warp's Python launch) stays outside the events (NVIDIA's
-#: nvbench holds the stream the same way, with a kernel that waits on a host flag).
-HOLD_S = 200e-6
-#: Tries a repeat gets when the host took longer than HOLD_S to enqueue it (a pause of the
-#: interpreter): its events would then count host time.
-HOLD_TRIES = 3
-#: The clocks of :func:`force_time`.
-CLOCKS = ("device", "wall")
-
-
-def device_timed(fn, device: str, repeats: int, setup=None) -> tuple[float, list[float]]:
-    """:func:`timed`, on CUDA on the device's clock: the seconds between events recorded just
-    before and after ``fn``'s device work (see :data:`HOLD_S`; a repeat whose enqueueing
-    outlasts the hold is made again, up to HOLD_TRIES times, then RuntimeError); on the CPU the
-    wall clock."""
-    if not device.startswith("cuda"):
-        return timed(fn, device, repeats, setup)
-    from ..kernels.intrinsics import hold_stream
-
-    wp = warp()
-    stream = wp.get_stream(device)
-    times = []
-    for i in range(repeats):
-        for _ in range(HOLD_TRIES):
-            arg = None  # the previous inputs go before the next are made
-            arg = setup(i) if setup else None
-            synchronize(device)
-            start, end = wp.Event(device, enable_timing=True), wp.Event(device, enable_timing=True)
-            wp.launch(hold_stream, dim=1, inputs=[int(HOLD_S * 1e9)], device=device)
-            enqueued = time.perf_counter()
-            stream.record_event(start)
-            fn(arg) if setup else fn()
-            stream.record_event(end)
-            if time.perf_counter() - enqueued < HOLD_S:
-                break
-        else:
-            raise RuntimeError(f"the host took longer than HOLD_S = {HOLD_S} s to enqueue the timed work "
-                               f"{HOLD_TRIES} times: its events would count host time")
-        times.append(wp.get_event_elapsed_time(start, end) / 1e3)
-    return statistics.median(times), times
+)
 
 
 def fit_exponent(n, t) -> tuple[float, float]:
@@ -167,10 +107,9 @@ def force_time(params: Params, algorithm: str, realizations: int, device: str, r
     repeat; ``leaf_size`` and ``band_limit`` tune the tree (:func:`mdroll.contact_force`).
 
     The launch is recorded outside the clock (:func:`mdroll.forces.force.force_command`):
-    its host work, ~0.2 ms for the tree whatever n, would otherwise flatten the slopes of the
-    small GPU sizes. ``clock="device"`` times the kernel on CUDA by :func:`device_timed`,
-    ``"wall"`` with the host's clock around its launch (:func:`timed`, which adds the ~15-20 us
-    of the launch itself)."""
+    its host work, the same whatever n, would otherwise flatten the slopes of the small GPU
+    sizes. ``clock="device"`` times the kernel on CUDA by :func:`device_timed`, ``"wall"`` with
+    the host's clock around its launch (:func:`timed`, which adds the launch's own latency)."""
     if clock not in CLOCKS:
         raise ValueError(f"clock = {clock!r}: force_time's clocks are {', '.join(map(repr, CLOCKS))}")
     wp = warp()
@@ -240,13 +179,12 @@ def memory_per_realization(params: Params, algorithm: str, device: str) -> int:
 
 def run_study(size: str = "quick", devices=None, progress=print) -> dict:
     """Run the study of ``size`` ("quick" or "full") on ``devices`` (default: every available
-    one; CUDA only with CuPy) and return the JSON-ready record."""
-    from ..provenance import environment
-
-    study = STUDIES[size]
+    one; CUDA only with CuPy) and return the JSON-ready record: the provenance of
+    :func:`mdroll.experiments.provenance` (one environment per device) and the sections."""
+    study = SIZES.rung(size)
     full = size == "full"
     devices = [resolve_device(d) for d in (devices or usable_devices()[:2])]
-    record = {"size": size, "environment": {d: environment(d) for d in devices}, "compile_s": {}, "refinement": [],
+    record = {**provenance(devices[0], size, None, study, devices=devices), "compile_s": {}, "refinement": [],
               "distance": [], "ensemble": [], "cpu_vs_cuda": [], "stages": {}, "memory_bytes_per_realization": {},
               "fits": {}, "thesis": {}}
     for device in devices:

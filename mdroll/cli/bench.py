@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import json
-
 from ..bench import format_table, plot_study, run_study
 from ..devices import resolve_device
-from ..files import atomic_write
+from ..experiments import write_json
 from .common import output_dir, output_options, progress_printer, size_options
 
 
@@ -21,10 +19,8 @@ def execute(args) -> int:
     devices = [resolve_device(d) for d in args.device] if args.device else None  # before the folder is made
     out = output_dir(args)
     record = run_study(args.size or "quick", devices=devices, progress=progress_printer(args))
-    with atomic_write(out / "bench.json", "w") as file:
-        json.dump(record, file, indent=2)
-    with atomic_write(out / "bench.png") as file:
-        plot_study(record, file)
+    write_json(out / "bench.json", record, indent=2)
+    plot_study(record, out / "bench.png")
     print(format_table(record))
     print(f"wrote {out}/: bench.json bench.png")
     return 0

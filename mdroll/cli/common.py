@@ -72,6 +72,7 @@ def cluster_options(p) -> None:
     p.add_argument("--workers", type=int, metavar="N", help="run on a local Dask cluster of N worker processes "
                    "(one per GPU on a GPU machine, --device cpu for CPU processes)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="run on an existing Dask cluster (tcp://host:8786)")
+    p.add_argument("--verbose", action="store_true", help="show Dask's informational logs")
 
 
 @contextlib.contextmanager
@@ -82,11 +83,17 @@ def cluster_runner(args, checkpoint=None):
     if args.workers is None and args.scheduler is None:
         yield None, args.device
         return
+    option = "--workers" if args.workers is not None else "--scheduler"
     # imported here for start-up cost: Dask loads only for a command that asks for a cluster
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        raise UsageError(f"{option} needs Dask distributed, which is not installed: "
+                         "pip install 'mdroll[distributed]'") from None
     from ..distributed import DaskRunner, connect
 
     device = args.device if args.scheduler is not None or args.device == "cpu" else "auto"
-    with connect(args.workers, args.scheduler, args.device) as client:
+    with connect(args.workers, args.scheduler, args.device, getattr(args, "verbose", False)) as client:
         yield DaskRunner(client, checkpoint=checkpoint), device
 
 

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from ..devices import resolve_device
 from ..errors import ParameterError, UsageError
+from ..experiments import write_json
 from ..files import atomic_write
 from .common import (check_directory_path, cluster_runner, output_dir, output_options, progress_printer, reading,
                      size_options)
@@ -90,7 +91,7 @@ def execute(args) -> int:
 def _report(args) -> int:
     """``--report JSON ...``: the Markdown tables of round-trip records."""
     from ..inverse.records import read_record
-    from ..inverse.roundtrip import merge_records, report
+    from ..inverse.roundtrip_report import merge_records, report
 
     with _option("--report"):
         records = [read_record(name) for name in args.report]
@@ -100,7 +101,8 @@ def _report(args) -> int:
 
 def _round_trip(args) -> int:
     """``--round-trip``: spectra simulated at known parameters, fitted, and the estimates compared."""
-    from ..inverse.roundtrip import format_table, plot_study, run_study
+    from ..inverse.roundtrip import run_study
+    from ..inverse.roundtrip_report import format_table, plot_study
 
     if args.spectrum:
         raise UsageError("--round-trip simulates its own spectra: give no SPECTRUM")
@@ -120,8 +122,7 @@ def _round_trip(args) -> int:
         written.insert(1, "roundtrip.png")
     with atomic_write(out / "roundtrip.md", "w") as file:
         file.write(format_table(record) + "\n")
-    with atomic_write(out / "roundtrip.json", "w") as file:
-        json.dump(record, file, indent=1)
+    write_json(out / "roundtrip.json", record)
     print(format_table(record))
     print(f"{record['seconds']:.0f} s; wrote {out}/: {' '.join(written)}")
     return 0

@@ -35,12 +35,12 @@ def add_parser(sub) -> None:
 def execute(args) -> int:
     # imported when the command runs, for start-up cost: the railway tasks load scipy.stats
     from ..railway import tasks
-    from ..railway.studies import STUDIES
+    from ..railway.studies import RAILWAY_STUDIES
 
     if args.task == "check":
-        unknown = sorted(set(args.only or ()) - set(STUDIES))
+        unknown = RAILWAY_STUDIES.unknown(args.only or ())
         if unknown:
-            raise UsageError(f"--only: unknown study(ies) {unknown}; valid ones are: {', '.join(STUDIES)}")
+            raise UsageError(f"--only: unknown study(ies) {unknown}; valid ones are: {', '.join(RAILWAY_STUDIES)}")
         device = resolve_device(args.device)
         passed = tasks.check(args.size or "quick", args.seed, device, output_dir(args), args.only)
         return 0 if passed else 1

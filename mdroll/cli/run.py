@@ -21,7 +21,7 @@ from ..ensemble.pipeline import run_ensemble
 from ..ensemble.result import result_summary
 from ..ensemble.spec import EnsembleSpec
 from ..ensemble.validity import parameter_concerns, result_concerns
-from ..errors import UsageError
+from ..errors import SchedulerLost, UsageError
 from ..files import atomic_write, remove_stale_temporaries
 from ..railway.report import write_band_outputs
 from .common import (build_params, cluster_options, cluster_runner, format_value, lock, output_dir, output_options,
@@ -102,23 +102,49 @@ def execute(args) -> int:
 
 def _run_distributed(args) -> int:
     """``mdroll run --workers N | --scheduler ADDRESS``: the run's units on a Dask cluster; every
-    finished unit is kept in OUT/units, from which ``--resume OUT`` continues."""
+    finished unit is kept in OUT/units, from which ``--resume OUT`` continues (the same run:
+    options that would change it are refused, naming them)."""
     if args.resume:
+        if args.out:
+            raise UsageError(f"--out {args.out} with --resume {args.resume}: a resumed run writes into its own "
+                             "directory; drop --out")
         out = Path(args.resume)
-        (spec,) = saved_specs(out / "units")
+        (saved,) = saved_specs(out / "units")
+        spec = _distributed_spec(args, saved.params.as_dict(), {k: getattr(saved, k) for k in RUN_DEFAULTS},
+                                 saved.indices)
+        old, new = saved.as_dict(), spec.as_dict()
+        changed = [f"{k}: {old['params'][k]!r} -> {v!r}" for k, v in new["params"].items() if old["params"][k] != v]
+        changed += [f"{k}: {old[k]!r} -> {v!r}" for k, v in new.items() if k != "params" and old[k] != v]
+        if changed:
+            raise UsageError(f"--resume {args.resume} continues the run it holds; the command line changes it ("
+                             + "; ".join(changed) + "): drop those options or start a new run")
+        lock(out, "--resume")
     else:
-        params = build_params(args)
-        settings = _settings(args, RUN_DEFAULTS)
-        indices = _realizations(args, params)
-        if not isinstance(indices, range):
-            raise UsageError(f"--realizations {args.realizations}: the number of realizations must be at least 1")
-        _refuse_outside_validity(args, params)
-        spec = EnsembleSpec(params, first=indices.start, realizations=len(indices), **settings)
+        spec = _distributed_spec(args, None, RUN_DEFAULTS, None)
         out = output_dir(args, clear=RUN_OUTPUTS)
     with cluster_runner(args, checkpoint=out / "units") as (runner, device):
-        (result,) = runner.run_specs([spec], device=device, progress=not args.no_progress)
+        try:
+            (result,) = runner.run_specs([spec], device=device, progress=not args.no_progress)
+        except SchedulerLost as exc:
+            where = f"--scheduler {args.scheduler}" if args.scheduler else f"--workers {args.workers}"
+            raise UsageError(f"{exc}; continue with: mdroll run --resume {out} {where}") from None
     write_outputs(result, out)
     return 0
+
+
+def _distributed_spec(args, base_params, base_settings: dict, base_indices) -> EnsembleSpec:
+    """The spec of a distributed run: the command line over ``base_params``, ``base_settings``
+    and ``base_indices`` (a resumed run's), else over the defaults."""
+    params = build_params(args, base=base_params)
+    settings = _settings(args, base_settings)
+    if base_indices is not None and args.realizations is None and args.first is None:
+        indices = base_indices
+    else:
+        indices = _realizations(args, params)
+    if not isinstance(indices, range):
+        raise UsageError(f"--realizations {args.realizations}: the number of realizations must be at least 1")
+    _refuse_outside_validity(args, params)
+    return EnsembleSpec(params, first=indices.start, realizations=len(indices), **settings)
 
 
 def _settings(args, base: dict) -> dict:

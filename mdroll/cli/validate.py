@@ -5,8 +5,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from ..devices import resolve_device
-from ..provenance import environment
+from ..experiments import provenance
 from ..validation import CHECKS, SIZES, EnsembleCache, run_checks, select
 from ..validation.report import format_table, write_junit, write_report
 from .common import check_file_path, cluster_options, cluster_runner, output_dir, output_options, size_options
@@ -44,8 +43,7 @@ def execute(args) -> int:
     with cluster_runner(args) as (runner, device):
         results = run_checks(size, seed=args.seed, device=device, progress=not args.no_progress, providers=providers,
                              runner=runner, cache=cache)
-    meta = {"size": size, "seed": args.seed, "base_params": SIZES[size].base.as_dict(),
-            "coupled_params": SIZES[size].coupled.as_dict(), **environment(resolve_device(device))}
+    meta = provenance(device, size, args.seed, SIZES.rung(size))
     if cache is not None:
         meta["cache"] = {"dir": str(cache.directory), "hits": cache.hits, "misses": cache.misses}
     write_report(results, out, meta)

@@ -5,7 +5,8 @@ from __future__ import annotations
 import sys
 
 from ..devices import is_cuda, warp
-from ..params import ParameterError, Params
+from ..errors import ParameterError
+from ..params import Params
 
 #: Bytes of device memory per spring of one realization in a batch (lines, half spectrum,
 #: prefix sums, tree, force, acceleration and FFT work space), for sizing batches.

@@ -18,7 +18,8 @@ from .._version import __version__
 from ..devices import warp
 from ..files import atomic_write
 from ..kernels.moments import LOST, SUM_DEVIATION, SUM_SQUARES
-from ..params import ParameterError, Params
+from ..errors import ParameterError
+from ..params import Params
 from .result import STAGES
 from .psd import RunningMoments, array_module, to_host, wavenumbers
 

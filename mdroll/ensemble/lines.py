@@ -9,7 +9,8 @@ import numpy as np
 
 from ..devices import is_cuda, resolve_device, warp
 from ..arguments import check_params
-from ..params import ParameterError, Params
+from ..errors import ParameterError
+from ..params import Params
 from ..roughness.kinds import check_spectrum
 from .. import buffers
 from .batching import check_count_fits

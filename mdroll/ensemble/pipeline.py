@@ -17,10 +17,10 @@ from pathlib import Path
 import numpy as np
 
 from ..devices import cpu_cores, is_cuda, queue_on, resolve_device, to_warp, warp
-from ..errors import NonFiniteError
+from ..errors import NonFiniteError, ParameterError
 from ..kernels.dynamics import INTEGRATORS
 from ..kernels.moments import NOT_FINITE
-from ..params import ParameterError, Params
+from ..params import Params
 from .. import buffers
 from ..arguments import check_choice, check_flag, check_integer, check_params
 from ..forces.force import launch_force

@@ -11,7 +11,8 @@ import numpy as np
 
 from .._version import __version__
 from ..files import atomic_write
-from ..params import ParameterError, Params
+from ..errors import ParameterError
+from ..params import Params
 from .psd import RunningMoments, wavenumbers
 
 #: The stages of a run whose times a result reports, in the order a batch passes them.

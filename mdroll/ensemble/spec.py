@@ -17,7 +17,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from ..arguments import check_params
-from ..params import ParameterError, Params
+from ..errors import ParameterError
+from ..params import Params
 from ..roughness.kinds import check_spectrum
 from .lines import check_seed
 from ..forces.registry import default_algorithm

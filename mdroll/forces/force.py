@@ -13,7 +13,8 @@ import numpy as np
 
 from ..arguments import check_choice, check_params, check_positive, check_real, check_tree_options
 from ..devices import device_of, resolve_device, to_warp, warp
-from ..params import ParameterError, Params
+from ..errors import ParameterError
+from ..params import Params
 from .algorithm import LIFTS
 from .indenter import lift_table
 from .prepare import prepare_lines

@@ -8,7 +8,8 @@ import math
 from .. import physics
 from ..devices import warp
 from ..kernels.common import BLOCK, Contact, indenter_lifts
-from ..params import MAX_POINTS, ParameterError, Params
+from ..errors import ParameterError
+from ..params import MAX_POINTS, Params
 
 
 def indenter_curvature(params: Params) -> float:

@@ -6,7 +6,8 @@ algorithm's registry entry needs (row bounds, prefix sums, min/max tree;
 from __future__ import annotations
 
 from ..devices import to_warp
-from ..params import ParameterError, Params
+from ..errors import ParameterError
+from ..params import Params
 from .algorithm import BOUNDS, PREFIX, TREE
 from .indenter import indenter_curvature, reach
 from .prepared import (DEFAULT_BAND_LIMIT, DEFAULT_LEAF_SIZE, PreparedLines, batch_bounds, min_max_tree, periodic_copy,

@@ -13,7 +13,7 @@ from ..devices import is_cuda, to_warp, warp
 from ..kernels import common
 from ..kernels.lines import (BOUNDS_GROUP, BOUNDS_THREADS, periodic_extend, row_min_max, segment_min_max,
                              strided_min_max, tree_parents)
-from ..params import ParameterError
+from ..errors import ParameterError
 
 #: Springs per tree leaf: the fastest leaf size at thesis scale (docs/performance.md, "Tree").
 DEFAULT_LEAF_SIZE = 32

@@ -11,7 +11,7 @@ module branches on algorithm names:
   returns it;
 - ``coupled``: its kernel of the coupled dynamics (eq 13) and that kernel's ``lines`` argument,
   or None where the algorithm has no coupled step (then ``mode="coupled"`` refuses it with a
-  :class:`~mdroll.params.ParameterError`: there is no fallback);
+  :class:`~mdroll.errors.ParameterError`: there is no fallback);
 - ``exact`` (equal to the direct sum to rounding) or an approximation, ``max_window`` (the
   contact window, springs a side, up to which its float64 closed forms are exact; None: no such
   limit), and its expected ``complexity`` for the scaling study (``mdroll bench``).
@@ -44,7 +44,7 @@ algorithm with the direct sum (tests/test_force.py) run it too.
 from __future__ import annotations
 
 from ..kernels.common import MAX_CLOSED_FORM_OFFSET
-from ..params import ParameterError
+from ..errors import ParameterError
 from .algorithm import BOUNDS, LIFTS, PREFIX, TREE, Algorithm, BenchVariant, Complexity
 from .direct import direct_coupled, direct_launch
 from .edge import edge_coupled, edge_launch

@@ -8,7 +8,8 @@ import math
 from .. import physics
 from ..arguments import check_choice
 from ..fft import fast_length
-from ..params import ParameterError, Params
+from ..errors import ParameterError
+from ..params import Params
 from .indenter import indenter_curvature, reach
 
 #: The boundaries a line may have (``boundary=`` everywhere): ``open``, the thesis's, where the

@@ -18,7 +18,8 @@ from ..devices import DeviceLimits, device_limits, is_cuda, warp
 from ..kernels.sweep_coupled import SweepLines, coupled_sweep
 from ..kernels.sweep_sequential import contact_force_sequential
 from ..kernels.sweep_stream import BIN_BYTES, MAX_STREAM_BAND, RING_UNIT, stream_kernel
-from ..params import ParameterError, Params
+from ..errors import ParameterError
+from ..params import Params
 from .indenter import reach_strict
 from .prepared import ensure_prefix_sums
 

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from ..params import ParameterError
+from ..errors import ParameterError
 from .observed import Spectrum
 
 #: Default top of the band of a simulated spectrum, as a fraction of its Nyquist frequency pi/dt

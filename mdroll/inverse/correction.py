@@ -33,7 +33,8 @@ import numpy as np
 import scipy.optimize
 
 from ..ensemble.spec import EnsembleSpec
-from ..params import ParameterError, Params
+from ..errors import ParameterError
+from ..params import Params
 from ..physics import TWO_PI
 from .forward_model import PARAMETERS, Correction, expected_psd, load_times_radius, setting_for
 from .likelihood import long_run_factor

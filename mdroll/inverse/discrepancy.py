@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from ..params import ParameterError
+from ..errors import ParameterError
 from .correction import knots
 from .forward_model import PARAMETERS, Correction
 from .intervals import Z95

@@ -19,7 +19,7 @@ import numpy as np
 import scipy.optimize
 
 from ..ensemble.spec import run_specs
-from ..params import ParameterError
+from ..errors import ParameterError
 from .correction import iterate
 from .discrepancy import discrepancy_sigma, prior, with_discrepancy
 from .fill_check import FILL_CHECKS, with_fill_check

@@ -59,7 +59,7 @@ import numpy as np
 import scipy.signal
 import scipy.special
 
-from ..params import ParameterError
+from ..errors import ParameterError
 from .. import physics
 
 #: Every parameter the model can fit: (unit, transform, lower, upper). "log": fitted as its

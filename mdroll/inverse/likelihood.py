@@ -26,7 +26,7 @@ import math
 import numpy as np
 import scipy.stats
 
-from ..params import ParameterError
+from ..errors import ParameterError
 from .band import resolve_band
 from .forward_model import (NUISANCE_DEFAULTS, PARAMETERS, Correction, check_free, contact_radius_from_load,
                             default_free, expected_psd, resolve_known, setting_for)

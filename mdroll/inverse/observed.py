@@ -25,7 +25,8 @@ import numpy as np
 
 from ..ensemble.result import EnsembleResult
 from ..files import atomic_write
-from ..params import ParameterError, Params
+from ..errors import ParameterError
+from ..params import Params
 from ..physics import TWO_PI
 
 QUANTITIES = ("accel", "force")

@@ -1,4 +1,5 @@
-"""How good the inversion is: parametric bootstrap, round trips and the study over a grid.
+"""How good the inversion is: parametric bootstrap, round trips and the study over a grid (its
+tables and figure: :mod:`.roundtrip_report`).
 
 A round trip simulates an ensemble with known parameters (:func:`mdroll.run_specs`), inverts
 its acceleration spectrum with :func:`mdroll.inverse.fit` and compares. The study runs round
@@ -19,15 +20,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..ensemble.spec import EnsembleSpec, run_specs
-from ..params import ParameterError, Params
+from ..experiments import Ladder, provenance
+from ..errors import ParameterError
+from ..params import Params
 from ..physics import TWO_PI, effective_modulus
 from .correction import iterate, simulation_params
 from .fit import fit, refit
 from .forward_model import load_times_radius
 from .observed import from_result, read_table, write_table
 
-#: Parameters compared in a round trip, and the targets of issue 19 at the thesis's scale
-#: (K = 300, L = 5 m): absolute for H, relative for the others.
+#: Parameters compared in a round trip, and their targets at the thesis's scale (K = 300,
+#: L = 5 m): absolute for H, relative for the others.
 TARGETS = {"H": 0.02, "a": 0.005, "q_min": 0.01, "h0": 0.03, "E_star": 0.02}
 KNOWN = ("m", "R")
 #: Seed of the first realistic case (one per repeat: 7, 8, ...).
@@ -35,8 +38,8 @@ REALISTIC_SEED = 7
 
 
 @dataclass(frozen=True)
-class StudySize:
-    """A study: the true parameter sets, passes K, lengths L (m), repeats (seeds) per cell and per
+class RoundTripSize:
+    """The study's parameters on one rung of the ladder (:data:`SIZES`): the true parameter sets, passes K, lengths L (m), repeats (seeds) per cell and per
     realistic case, the realistic cases' speeds (m/s), and the (K, L) of those."""
 
     truths: tuple
@@ -65,12 +68,12 @@ def truth_grid(full: bool) -> tuple:
     return tuple([base] + variations)
 
 
-SIZES = {
-    "quick": StudySize(truths=truth_grid(False), passes=(1, 10, 100), lengths=(0.5, 1.0), repeats=1,
-                       realistic_speeds=(10.0, 20.0, 40.0), realistic_passes=100, realistic_length=1.0),
-    "full": StudySize(truths=truth_grid(True), passes=(1, 10, 100, 300), lengths=(0.5, 1.0, 5.0), repeats=3,
-                      realistic_speeds=(10.0, 20.0, 40.0), realistic_passes=300, realistic_length=5.0),
-}
+SIZES = Ladder(
+    quick=RoundTripSize(truths=truth_grid(False), passes=(1, 10, 100), lengths=(0.5, 1.0), repeats=1,
+                        realistic_speeds=(10.0, 20.0, 40.0), realistic_passes=100, realistic_length=1.0),
+    full=RoundTripSize(truths=truth_grid(True), passes=(1, 10, 100, 300), lengths=(0.5, 1.0, 5.0), repeats=3,
+                       realistic_speeds=(10.0, 20.0, 40.0), realistic_passes=300, realistic_length=5.0),
+)
 
 
 #: The most bootstrap replicates (each an ensemble and a fit): beyond, the percentiles do not move.
@@ -233,8 +236,9 @@ def run_study(size: str = "quick", device: str = "auto", folder=None, progress=l
     replaces its seeds per truth), fitted with the ``correction`` ("simulated" or "none"; its
     ensembles of ``correction_passes`` passes, default
     :func:`mdroll.inverse.correction.default_passes`) and the
-    realistic cases; a JSON-ready record with the rows, a summary per (K, L) (median and 90th
-    percentile of |error|, coverage of the 95 % intervals) and the total time.
+    realistic cases; a JSON-ready record with the provenance (:func:`mdroll.experiments.provenance`),
+    the rows, a summary per (K, L) (median and 90th percentile of |error|, coverage of the 95 %
+    intervals) and the total time.
 
     Per (K, L) cell the ensembles run one after the other on ``device`` (:func:`mdroll.run_specs`),
     then their fits in ``workers`` processes (the fit is NumPy on the host). The realistic cases
@@ -243,11 +247,9 @@ def run_study(size: str = "quick", device: str = "auto", folder=None, progress=l
     from concurrent.futures import ProcessPoolExecutor
     from pathlib import Path
 
-    if size not in SIZES:
-        raise ParameterError(f"size = {size!r} is not allowed: use one of {', '.join(map(repr, SIZES))}")
+    plan = SIZES.rung(size)
     if correction not in ("simulated", "none"):
         raise ParameterError(f"correction = {correction!r} is not allowed: use 'simulated' or 'none'")
-    plan = SIZES[size]
     if repeats is not None:
         if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
             raise ParameterError(f"repeats = {repeats!r} is not allowed: it must be a positive integer")
@@ -285,7 +287,7 @@ def run_study(size: str = "quick", device: str = "auto", folder=None, progress=l
                                                             "simulate_s": simulate_s, "fit_s": fit_s})
                     rows.append(row)
                     progress(f"K={k} L={length} {change or 'defaults'} seed {seed}: "
-                             + " ".join(f"{n} {_fmt_error(n, e)}" for n, e in row["error"].items())
+                             + " ".join(f"{n} {format_error(n, e)}" for n, e in row["error"].items())
                              + (f" ({row['iterations']} iterations)" if "iterations" in row else ""))
     finally:
         if pool:
@@ -298,13 +300,15 @@ def run_study(size: str = "quick", device: str = "auto", folder=None, progress=l
                 row = realistic_case(truth, plan.realistic_passes, seed=seed, device=device, folder=folder)
                 realistic.append(row)
                 progress(f"realistic v0={v0} seed {seed}: "
-                         + " ".join(f"{n} {_fmt_error(n, e)}" for n, e in row["error"].items()))
-    return {"size": size, "rows": rows, "summary": summarize(rows), "realistic": realistic, "targets": TARGETS,
+                         + " ".join(f"{n} {format_error(n, e)}" for n, e in row["error"].items()))
+    return {**provenance(device, size, None, plan), "rows": rows, "summary": summarize(rows), "realistic": realistic,
+            "targets": TARGETS,
             "known": list(KNOWN) + ["v0"], "workers": workers, "correction": correction,
             "seconds": time.perf_counter() - started}
 
 
-def _fmt_error(name: str, error: float) -> str:
+def format_error(name: str, error: float) -> str:
+    """An error as text: H absolute, the others in per cent."""
     return f"{error:+.4f}" if name == "H" else f"{100 * error:+.2f}%"
 
 
@@ -324,139 +328,3 @@ def summarize(rows) -> list:
                                "coverage": float(np.mean(covered))}
         out.append(entry)
     return out
-
-
-def format_table(record: dict) -> str:
-    """The summary as a Markdown table: median |error| (coverage of the 95 % intervals)."""
-    names = list(TARGETS)
-    head = "| K | L (m) | trips | " + " | ".join(f"{n} ({'abs' if n == 'H' else '%'})" for n in names) + " |"
-    lines = [head, "|" + "---|" * (3 + len(names))]
-    for e in record["summary"]:
-        cells = []
-        for n in names:
-            if n not in e:
-                cells.append("-")
-                continue
-            m = e[n]["median_abs_error"]
-            value = f"{m:.4f}" if n == "H" else f"{100 * m:.2f}"
-            cells.append(f"{value} ({100 * e[n]['coverage']:.0f}%)")
-        lines.append(f"| {e['passes']} | {e['L']:g} | {e['round_trips']} | " + " | ".join(cells) + " |")
-    for row in record.get("realistic", []):
-        cells = [_realistic_cell(row, n) if n in row["error"] else "-" for n in names]
-        lines.append(f"| {row['passes']} | {row['L']:g} | realistic v0={row['v0']:g} seed {row['seed']} | "
-                     + " | ".join(cells) + " |")
-    return "\n".join(lines)
-
-
-def _realistic_cell(row: dict, name: str) -> str:
-    """A realistic case's error and coverage; the widening of its interval over the statistical one
-    by the model discrepancy and the fill check together (where 10 % or more), and the statistical
-    interval's verdict where it differs (the one before the fill check in records without the
-    discrepancy)."""
-    text = _fmt_error(name, row["error"][name]) + (" in" if row["covered"][name] else " out")
-    widening, statistical = 1.0, row["covered"][name]
-    for part, verdict in (("fill_check", "covered_local"), ("discrepancy", "covered_without")):
-        extra = row.get(part)
-        if extra:
-            widening *= extra["widening"][name]
-            statistical = extra[verdict][name]  # the discrepancy's is before the fill check too
-    if widening >= 1.1:
-        text += f" x{widening:.1f}"
-    if statistical != row["covered"][name]:
-        text += " (statistical: " + ("in" if statistical else "out") + ")"
-    return text
-
-
-def merge_records(records) -> dict:
-    """One record from the records of several parts of a study (their rows and realistic cases, a
-    later realistic case replacing an earlier one of the same K, L, v0 and seed; the summary recomputed,
-    the seconds summed)."""
-    records = list(records)
-    if not records:
-        raise ParameterError("no round-trip record to report on")
-    rows = [row for r in records for row in r["rows"]]
-    realistic = {}  # a later record's realistic case replaces an earlier one's at the same K, L, v0 and seed
-    for row in (row for r in records for row in r.get("realistic", [])):
-        realistic[(row["passes"], row["L"], row["v0"], row["seed"])] = row
-    return {"size": records[0]["size"], "rows": rows, "summary": summarize(rows),
-            "realistic": list(realistic.values()), "targets": TARGETS,
-            "correction": records[0].get("correction", "none"), "seconds": sum(r["seconds"] for r in records)}
-
-
-def report(record: dict) -> str:
-    """The Markdown of docs/inverse.md's round-trip sections from a (merged) record: the table of
-    :func:`format_table`; where the rows carry the closed form's errors, its median |error| and
-    median signed H error beside the corrected ones; per true parameter set at the largest (K, L)
-    the median signed errors and coverage; and the fits that did not converge or were not
-    corrected."""
-    rows = record["rows"]
-    out = [format_table(record), ""]
-    if not rows:  # the realistic cases alone
-        return out[0]
-    corrected = [r for r in rows if "error_closed_form" in r]
-    if corrected:
-        out += ["Closed form (the first iterate) against the corrected fit: median |error|, and the median signed "
-                "error of H:", "", "| K | L (m) | H closed | H corrected | H signed closed | H signed corrected | "
-                "h0 closed (%) | h0 corrected (%) | E_star closed (%) | E_star corrected (%) |", "|" + "---|" * 10]
-        for key in sorted({(r["passes"], r["L"]) for r in corrected}):
-            cell = [r for r in corrected if (r["passes"], r["L"]) == key]
-
-            def median(name, field, signed=False):
-                values = [r[field][name] for r in cell if name in r[field]]
-                return float(np.median(values if signed else np.abs(values)))
-
-            out.append(f"| {key[0]} | {key[1]:g} | {median('H', 'error_closed_form'):.4f} | {median('H', 'error'):.4f} | "
-                       f"{median('H', 'error_closed_form', True):+.4f} | {median('H', 'error', True):+.4f} | "
-                       + " | ".join(f"{100 * median(n, 'error_closed_form'):.2f} | {100 * median(n, 'error'):.2f}"
-                                    for n in ("h0", "E_star")) + " |")
-        out.append("")
-    largest = max((r["passes"], r["L"]) for r in rows)
-    cell = [r for r in rows if (r["passes"], r["L"]) == largest]
-    out += [f"Per true parameter set at K = {largest[0]}, L = {largest[1]:g} m: median signed error (coverage):", "",
-            "| truth | trips | " + " | ".join(TARGETS) + " |", "|" + "---|" * (2 + len(TARGETS))]
-    for change in sorted({json_key(r["change"]) for r in cell}):
-        group = [r for r in cell if json_key(r["change"]) == change]
-        cells = []
-        for n in TARGETS:
-            errors = [r["error"][n] for r in group if n in r["error"]]
-            cover = np.mean([r["covered"][n] for r in group if n in r["covered"]])
-            cells.append(f"{_fmt_error(n, float(np.median(errors)))} ({100 * cover:.0f}%)")
-        out.append(f"| {change} | {len(group)} | " + " | ".join(cells) + " |")
-    failed = [r for r in rows if not r["success"]]
-    messages = sorted({r.get("message", "") for r in failed})
-    skipped = [r for r in rows if r.get("correction_skipped")]
-    unconverged = [r for r in corrected if not r.get("converged") and not r.get("correction_skipped")]
-    out += ["", f"{len(rows)} round trips; optimizer success false in {len(failed)} ({'; '.join(messages) or '-'}); "
-            f"correction skipped in {len(skipped)}, not converged in {len(unconverged)}; "
-            f"{record['seconds']:.0f} s in all."]
-    return "\n".join(out)
-
-
-def json_key(change: dict) -> str:
-    """A true parameter set's change from the defaults, as text (``defaults`` for none)."""
-    return ", ".join(f"{k}={v:.6g}" for k, v in sorted(change.items())) or "defaults"
-
-
-def plot_study(record: dict, path) -> None:
-    """|error| against K for each L and parameter (median over the truths), with the targets, as
-    PNG to ``path`` (a path or a binary file)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    names = list(TARGETS)
-    fig, axes = plt.subplots(1, len(names), figsize=(3.2 * len(names), 3.2))
-    for ax, name in zip(axes, names):
-        for length in sorted({e["L"] for e in record["summary"]}):
-            cells = [e for e in record["summary"] if e["L"] == length and name in e]
-            scale = 1.0 if name == "H" else 100.0
-            ax.loglog([e["passes"] for e in cells], [max(scale * e[name]["median_abs_error"], 1e-6) for e in cells],
-                      "o-", label=f"L = {length:g} m")
-        ax.axhline(TARGETS[name] * (1.0 if name == "H" else 100.0), color="0.5", ls="--", lw=0.8)
-        ax.set_title(f"{name}: median |error|" + ("" if name == "H" else " (%)"), fontsize=9)
-        ax.set_xlabel("passes K")
-    axes[0].legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120, format="png")
-    plt.close(fig)

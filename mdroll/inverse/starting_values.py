@@ -14,7 +14,7 @@ import math
 import numpy as np
 import scipy.ndimage
 
-from ..params import ParameterError
+from ..errors import ParameterError
 from ..physics import TWO_PI, edge_displacement
 from .band import find_resonance
 from .forward_model import contact_radius_from_load

@@ -15,9 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..params import Params
-from ..files import atomic_write
 from .. import roughness
+from ..experiments import Figure, write_figure
+from ..files import atomic_write
+from ..params import Params
 from ..roughness import bands
 
 
@@ -73,40 +74,37 @@ def bands_csv(spectra: dict) -> str:
     return out.getvalue()
 
 
-def plot_band_spectra(spectra: dict, path) -> None:
+def band_figure(spectra: dict) -> Figure:
     """bands.png: L_r against wavelength (frequency at v0 on top), L_F and L_a against frequency
     (wavelength at v0 on top)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     v0 = spectra["v0"]
-    fig, (ax_r, ax_f) = plt.subplots(2, 1, figsize=(8, 8), constrained_layout=True)
-    r = spectra["roughness"]
-    lam_mm = np.array(r["wavelength_m"]) * 1e3
-    ax_r.semilogx(lam_mm, np.array(r["L_r_dB"], dtype=float), "o-")
-    ax_r.invert_xaxis()
-    ax_r.set_xlabel("wavelength (mm)")
-    ax_r.set_ylabel("L_r (dB re 1 um)")
-    ax_r.grid(True, which="both", alpha=0.3)
-    top = ax_r.secondary_xaxis("top", functions=(lambda x: v0 / (np.maximum(x, 1e-12) * 1e-3),
-                                                  lambda f: v0 / np.maximum(f, 1e-12) * 1e3))
-    top.set_xlabel(f"frequency at v0 = {v0:g} m/s (Hz)")
-    fa = spectra["force_acceleration"]
-    f = np.array(fa["frequency_Hz"])
-    ax_f.semilogx(f, np.array(fa["L_F_dB"], dtype=float), "o-", label="force L_F (dB re 1 N)")
-    ax_f.semilogx(f, np.array(fa["L_a_dB"], dtype=float), "s-", label="acceleration L_a (dB re 1e-6 m/s^2)")
-    ax_f.set_xlabel("frequency (Hz)")
-    ax_f.set_ylabel("level (dB)")
-    ax_f.legend()
-    ax_f.grid(True, which="both", alpha=0.3)
-    top = ax_f.secondary_xaxis("top", functions=(lambda f: v0 / np.maximum(f, 1e-12) * 1e3,
-                                                  lambda x: v0 / (np.maximum(x, 1e-12) * 1e-3)))
-    top.set_xlabel(f"wavelength at v0 = {v0:g} m/s (mm)")
-    with atomic_write(path) as file:
-        fig.savefig(file, dpi=110, format="png")
-    plt.close(fig)
+
+    def draw(fig):
+        ax_r, ax_f = fig.subplots(2, 1)
+        r = spectra["roughness"]
+        lam_mm = np.array(r["wavelength_m"]) * 1e3
+        ax_r.semilogx(lam_mm, np.array(r["L_r_dB"], dtype=float), "o-")
+        ax_r.invert_xaxis()
+        ax_r.set_xlabel("wavelength (mm)")
+        ax_r.set_ylabel("L_r (dB re 1 um)")
+        ax_r.grid(True, which="both", alpha=0.3)
+        top = ax_r.secondary_xaxis("top", functions=(lambda x: v0 / (np.maximum(x, 1e-12) * 1e-3),
+                                                      lambda f: v0 / np.maximum(f, 1e-12) * 1e3))
+        top.set_xlabel(f"frequency at v0 = {v0:g} m/s (Hz)")
+        fa = spectra["force_acceleration"]
+        f = np.array(fa["frequency_Hz"])
+        ax_f.semilogx(f, np.array(fa["L_F_dB"], dtype=float), "o-", label="force L_F (dB re 1 N)")
+        ax_f.semilogx(f, np.array(fa["L_a_dB"], dtype=float), "s-", label="acceleration L_a (dB re 1e-6 m/s^2)")
+        ax_f.set_xlabel("frequency (Hz)")
+        ax_f.set_ylabel("level (dB)")
+        ax_f.legend()
+        ax_f.grid(True, which="both", alpha=0.3)
+        top = ax_f.secondary_xaxis("top", functions=(lambda f: v0 / np.maximum(f, 1e-12) * 1e3,
+                                                      lambda x: v0 / (np.maximum(x, 1e-12) * 1e-3)))
+        top.set_xlabel(f"wavelength at v0 = {v0:g} m/s (mm)")
+
+    return Figure("bands", "1/3-octave band levels of the roughness, force and acceleration", draw, size=(8, 8),
+                  dpi=110)
 
 
 def write_band_outputs(result, out, summary: dict | None = None) -> dict:
@@ -117,7 +115,7 @@ def write_band_outputs(result, out, summary: dict | None = None) -> dict:
     text = bands_csv(spectra)
     with atomic_write(out / "bands.csv", "w") as file:
         file.write(text)
-    plot_band_spectra(spectra, out / "bands.png")
+    write_figure(band_figure(spectra), out / "bands.png")
     if summary is not None:
         summary["bands"] = spectra
     return spectra

@@ -1,8 +1,9 @@
 """Physics checks of the roughness models by ensembles (above the ensemble layer).
 
 Each function returns a JSON-ready dict of measured and predicted numbers with a ``passed`` flag
-where there is a pass criterion; :func:`run_all` runs them at a named size ("quick": a 2-core CPU
-in about a minute; "full": the GPU machine) for ``mdroll roughness check``.
+where there is a pass criterion; :data:`RAILWAY_STUDIES` registers them bound to a rung of the ladder
+(:data:`SIZES`: "quick", small lines for a CPU; "full", thesis-scale ensembles for a GPU) and :func:`run_all` runs them
+for ``mdroll roughness check``.
 
 Ensembles go through :class:`mdroll.EnsembleSpec` / :func:`mdroll.run_specs`; the checks of the
 force use the periodic boundary (physics.md section 6: no leakage, each bin the line's own mode).
@@ -15,26 +16,26 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import physics
-from ..forces.force import contact_force
+from .. import physics, roughness
 from ..ensemble.lines import rough_lines
-from ..ensemble.spec import EnsembleSpec, run_specs
 from ..ensemble.psd import psd_rows, to_host
+from ..ensemble.spec import EnsembleSpec, run_specs
+from ..experiments import Ladder, Registry, provenance
+from ..forces.force import contact_force
 from ..params import Params
-from .. import roughness
 from ..roughness import bands, filters, measured, tables
 
 #: Standard errors added to each model allowance (as mdroll.validation.checks).
 Z_SIGMA = 3.0
-#: dB tolerance of the round trip dB table -> PSD -> lines -> 1/3-octave levels (the issue's).
+#: dB tolerance of the round trip dB table -> PSD -> lines -> 1/3-octave levels.
 ROUND_TRIP_DB = 0.3
 #: Accel band-level difference (dB) up to which the decoupled mode counts as valid.
 DECOUPLED_DB = 1.0
 
 
 @dataclass(frozen=True)
-class StudySize:
-    """Sizes of the studies: a base for the line and force checks, one for eq 63 and one for the
+class RailwaySize:
+    """The studies' parameters on one rung of the ladder: a base for the line and force checks, one for eq 63 and one for the
     dynamics (long lines for the ISO 3095 spectrum's long waves)."""
 
     base: Params
@@ -46,12 +47,12 @@ class StudySize:
     profile_length: float = 20.0
 
 
-SIZES = {
-    "quick": StudySize(base=Params(L=0.5, dx=1e-5), eq63=Params(L=1.0, dx=1e-5), dynamics=Params(L=2.0, dx=5e-5),
-                       n_real=8, n_real_eq63=16, profile_length=8.0),
-    "full": StudySize(base=Params(L=5.0, dx=5e-6), eq63=Params(L=5.0, dx=5e-6), dynamics=Params(L=10.0, dx=5e-5),
-                      n_real=32, n_real_eq63=300, profile_length=100.0),
-}
+SIZES = Ladder(
+    quick=RailwaySize(base=Params(L=0.5, dx=1e-5), eq63=Params(L=1.0, dx=1e-5), dynamics=Params(L=2.0, dx=5e-5),
+                      n_real=8, n_real_eq63=16, profile_length=8.0),
+    full=RailwaySize(base=Params(L=5.0, dx=5e-6), eq63=Params(L=5.0, dx=5e-6), dynamics=Params(L=10.0, dx=5e-5),
+                     n_real=32, n_real_eq63=300, profile_length=100.0),
+)
 
 
 def _host(array) -> np.ndarray:
@@ -284,36 +285,57 @@ def roll_profile(profile: measured.Profile, params: Params, algorithm: str = "tr
     return {"q": params.dq * np.arange(psd.size), "force_psd": psd, "force_rms": float(np.std(force_host))}
 
 
-#: The studies of :func:`run_all`, by name (``mdroll roughness check --only NAME``).
-STUDIES = ("lines", "round_trip", "measured_profile", "high_band", "eq63", "dynamics", "contact_filter")
+#: The dB table of the round trip: wavelengths (mm) and levels (dB re 1 um).
+ROUND_TRIP_TABLE = ((1000.0, 500.0, 200.0, 100.0, 50.0, 20.0, 10.0, 5.0, 2.0, 1.0),
+                    (10.0, 8.0, 3.0, 0.0, -2.0, -5.0, -8.0, -10.0, -12.0, -15.0))
 
 
-def run_all(size: str = "quick", seed: int = 0, device: str = "cpu", only=None) -> dict:
-    """The studies of this module (:data:`STUDIES`; ``only``: a subset of their names) at ``size``
-    ("quick" or "full"); a JSON-ready record with one entry per study."""
-    s = SIZES[size]
+def _lines(s: RailwaySize, seed: int, device: str) -> list:
     p = s.base
-    rolled = roughness.RollOff(p.H, p.q_min, p.q_max)
-    wavelengths = [1000.0, 500.0, 200.0, 100.0, 50.0, 20.0, 10.0, 5.0, 2.0, 1.0]
-    levels = [10.0, 8.0, 3.0, 0.0, -2.0, -5.0, -8.0, -10.0, -12.0, -15.0]
-    line_models = (roughness.PowerLaw(p.H, p.q_min, p.q_max), rolled, roughness.iso3095(),
+    line_models = (roughness.PowerLaw(p.H, p.q_min, p.q_max), roughness.RollOff(p.H, p.q_min, p.q_max),
+                   roughness.iso3095(),
                    roughness.PowerLaw(p.H, p.q_min, p.q_max, kind="areal"),
                    roughness.Tabulated(np.geomspace(p.q_min / 4, p.q_max, 50), 1e-20 * np.geomspace(1, 1e-6, 50)),
                    roughness.FromCallable(lambda q: 1e-14 / (1.0 + (q / 2000.0) ** 3), absolute=True))
-    studies = {
-        "lines": lambda: [line_spectrum_check(p, m, seed, 4, device) for m in line_models],
-        "round_trip": lambda: db_round_trip(p.replace(L=max(p.L, 5.0), dx=max(p.dx, 5e-5)), wavelengths, levels, seed,
-                                            4, device),
-        "measured_profile": lambda: measured_profile_check(
-            p.replace(dx=5e-5), roughness.RollOff(p.H, 2 * p.q_min / 5, p.q_max, prefactor=p.lambda_A), s.profile_length,
-            seed, 0.25),
-        "high_band": lambda: [high_band_check(p, roughness.PowerLaw(p.H, p.q_min, p.q_max), p.q_min, seed, s.n_real, device),
-                              high_band_check(p, rolled, p.q_min, seed, s.n_real, device)],
-        "eq63": lambda: eq63_study(s.eq63, seed, s.n_real_eq63, device),
-        "dynamics": lambda: dynamics_study(s.dynamics, s.speeds, seed, max(2, s.n_real // 2), device),
-        "contact_filter": lambda: contact_filter_study(s.dynamics, seed, max(2, s.n_real // 2), device),
-    }
-    record = {"size": size, "seed": seed}
-    for name in STUDIES if only is None else only:
-        record[name] = studies[name]()
+    return [line_spectrum_check(p, m, seed, 4, device) for m in line_models]
+
+
+def _round_trip(s: RailwaySize, seed: int, device: str) -> dict:
+    p = s.base
+    return db_round_trip(p.replace(L=max(p.L, 5.0), dx=max(p.dx, 5e-5)), *ROUND_TRIP_TABLE, seed, 4, device)
+
+
+def _measured_profile(s: RailwaySize, seed: int, device: str) -> dict:
+    p = s.base
+    spectrum = roughness.RollOff(p.H, 2 * p.q_min / 5, p.q_max, prefactor=p.lambda_A)
+    return measured_profile_check(p.replace(dx=5e-5), spectrum, s.profile_length, seed, 0.25)
+
+
+def _high_band(s: RailwaySize, seed: int, device: str) -> list:
+    p = s.base
+    return [high_band_check(p, roughness.PowerLaw(p.H, p.q_min, p.q_max), p.q_min, seed, s.n_real, device),
+            high_band_check(p, roughness.RollOff(p.H, p.q_min, p.q_max), p.q_min, seed, s.n_real, device)]
+
+
+#: The studies of :func:`run_all` by name (``mdroll roughness check --only NAME``), each a function
+#: of the rung (:class:`RailwaySize`), the seed and the device.
+RAILWAY_STUDIES = Registry("railway study", [
+    ("lines", _lines),
+    ("round_trip", _round_trip),
+    ("measured_profile", _measured_profile),
+    ("high_band", _high_band),
+    ("eq63", lambda s, seed, device: eq63_study(s.eq63, seed, s.n_real_eq63, device)),
+    ("dynamics", lambda s, seed, device: dynamics_study(s.dynamics, s.speeds, seed, max(2, s.n_real // 2), device)),
+    ("contact_filter", lambda s, seed, device: contact_filter_study(s.dynamics, seed, max(2, s.n_real // 2), device)),
+])
+
+
+def run_all(size: str = "quick", seed: int = 0, device: str = "cpu", only=None) -> dict:
+    """The studies of :data:`RAILWAY_STUDIES` (``only``: a subset of their names) at ``size`` ("quick" or
+    "full"); a JSON-ready record: the provenance (:func:`mdroll.experiments.provenance`) and one
+    entry per study."""
+    s = SIZES.rung(size)
+    record = provenance(device, size, seed, s)
+    for name in RAILWAY_STUDIES if only is None else only:
+        record[name] = RAILWAY_STUDIES.named(name)(s, seed, device)
     return record

@@ -7,14 +7,15 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import math
 from pathlib import Path
 
 import numpy as np
 
+from ..experiments import Figure, write_figure, write_json
 from ..files import atomic_write
 from ..roughness import bands, filters, measured
+from .studies import run_all
 
 
 def _write_text(path: Path, text: str) -> None:
@@ -34,15 +35,12 @@ def check(size: str, seed: int, device: str, out: Path, only=None) -> bool:
     """``mdroll roughness check``: :func:`mdroll.railway.studies.run_all` (``only``: some of its
     studies) into roughness.json and contact_filter.png; a summary on stdout; True when every
     check with a criterion passed."""
-    from ..provenance import environment
-    from .studies import run_all
-
     record = run_all(size, seed, device, only)
-    record["environment"] = environment(device)
-    _write_text(out / "roughness.json", json.dumps(record, indent=1, default=float))
+    write_json(out / "roughness.json", record)
     written = ["roughness.json"]
     if "contact_filter" in record:
-        plot_contact_filter(record["contact_filter"]["cnossos"], out / "contact_filter.png", record["contact_filter"])
+        write_figure(contact_filter_figure(record["contact_filter"]["cnossos"], record["contact_filter"]),
+                     out / "contact_filter.png")
         written.append("contact_filter.png")
     results = _passes(record)
     for name, passed in results:
@@ -79,41 +77,36 @@ def contact_filter_table(comparison: dict) -> str:
     return text.getvalue()
 
 
-def plot_contact_filter(comparison: dict, path, measured_record: dict | None = None) -> None:
+def contact_filter_figure(comparison: dict, measured_record: dict | None = None) -> Figure:
     """The MDR contact filter (closed band form) and CNOSSOS-EU A3 for the five cases against
     wavelength; with ``measured_record`` (:func:`studies.contact_filter_study`) the ensemble's."""
-    import matplotlib
+    def draw(fig):
+        ax = fig.subplots()
+        lam = np.array(comparison["wavelength_mm"])
+        for i, c in enumerate(comparison["cases"]):
+            color = f"C{i}"
+            tag = f"{c['load_N'] / 1e3:g} kN, D {c['diameter_m'] * 1e3:g} mm (a = {c['a_m'] * 1e3:.2f} mm)"
+            ax.semilogx(lam, c["A3_dB"], "o--", color=color, ms=3, label=f"A3 {tag}")
+            ax.semilogx(lam, c["MDR_dB"], "-", color=color, label=f"MDR {tag}")
+        if measured_record is not None:
+            ax.semilogx(measured_record["wavelength_mm"], measured_record["measured_dB"], "k*", ms=7,
+                        label=f"MDR measured (ISO 3095 ensemble, a = {measured_record['a_m'] * 1e3:.2f} mm)")
+        ax.invert_xaxis()
+        ax.set_xlabel("wavelength (mm)")
+        ax.set_ylabel("contact filter (dB)")
+        ax.set_ylim(-40, 2)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7, ncol=2)
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(9, 5.5), constrained_layout=True)
-    lam = np.array(comparison["wavelength_mm"])
-    for i, c in enumerate(comparison["cases"]):
-        color = f"C{i}"
-        tag = f"{c['load_N'] / 1e3:g} kN, D {c['diameter_m'] * 1e3:g} mm (a = {c['a_m'] * 1e3:.2f} mm)"
-        ax.semilogx(lam, c["A3_dB"], "o--", color=color, ms=3, label=f"A3 {tag}")
-        ax.semilogx(lam, c["MDR_dB"], "-", color=color, label=f"MDR {tag}")
-    if measured_record is not None:
-        ax.semilogx(measured_record["wavelength_mm"], measured_record["measured_dB"], "k*", ms=7,
-                    label=f"MDR measured (ISO 3095 ensemble, a = {measured_record['a_m'] * 1e3:.2f} mm)")
-    ax.invert_xaxis()
-    ax.set_xlabel("wavelength (mm)")
-    ax.set_ylabel("contact filter (dB)")
-    ax.set_ylim(-40, 2)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, ncol=2)
-    with atomic_write(path) as file:
-        fig.savefig(file, dpi=110, format="png")
-    plt.close(fig)
+    return Figure("contact_filter", "The MDR contact filter beside CNOSSOS-EU A3", draw, size=(9, 5.5), dpi=110)
 
 
 def contact_filter(out: Path) -> None:
     """``mdroll roughness filter``: contact_filter.csv, contact_filter.json and contact_filter.png."""
     comparison = filters.cnossos_comparison()
     _write_text(out / "contact_filter.csv", contact_filter_table(comparison))
-    _write_text(out / "contact_filter.json", json.dumps(comparison, indent=1))
-    plot_contact_filter(comparison, out / "contact_filter.png")
+    write_json(out / "contact_filter.json", comparison)
+    write_figure(contact_filter_figure(comparison), out / "contact_filter.png")
     print(contact_filter_table(comparison))
     print(f"wrote {out}/: contact_filter.csv contact_filter.json contact_filter.png")
 

@@ -9,7 +9,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .. import physics
-from ..params import ParameterError
+from ..errors import ParameterError
 from .kinds import RoughnessSpectrum, check_kind
 
 

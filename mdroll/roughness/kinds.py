@@ -42,7 +42,8 @@ from collections.abc import Callable
 import numpy as np
 from scipy import integrate, special
 
-from ..params import SPECTRUM_KINDS, ParameterError
+from ..errors import ParameterError
+from ..params import SPECTRUM_KINDS
 
 #: Geike's factor lambda of C_1D = lambda q C_2D fixed by the RMS normalization (eq 8, eq 50).
 GEIKE_LAMBDA = math.pi

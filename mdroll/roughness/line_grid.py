@@ -8,7 +8,8 @@ import math
 import numpy as np
 
 from .. import physics
-from ..params import ParameterError, Params
+from ..errors import ParameterError
+from ..params import Params
 from .analytic import BandLimited, PowerLaw, RollOff
 from .kinds import RoughnessSpectrum
 from .tabulated import BandLevels, Tabulated, iso3095

@@ -14,7 +14,8 @@ import numpy as np
 from scipy import signal, stats
 
 from .. import physics
-from ..params import ParameterError, Params
+from ..errors import ParameterError
+from ..params import Params
 from .tabulated import Tabulated, read_numbers, read_two_columns
 
 

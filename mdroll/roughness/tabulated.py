@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..params import ParameterError
+from ..errors import ParameterError
 from . import tables
 from .bands import band_centres, band_numbers, wavelength_band_edges_q
 from .kinds import ROUGHNESS_REFERENCE, RoughnessSpectrum, check_kind

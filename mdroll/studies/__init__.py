@@ -4,104 +4,104 @@ claimed with standard errors from the ensembles, and gives a verdict per claim.
 ``run_study(name, size)`` runs one study of :data:`STUDIES` through the shared sweep runner
 (:func:`mdroll.run_specs`) and returns a :class:`StudyRun`: its JSON record (every measured
 number with its standard error, every ensemble spec, seed, device, versions and commit) and its
-figures; :mod:`mdroll.studies.report` writes them and prints the table. Sizes: ``test`` (seconds
-on a CPU, for the test suite), ``quick`` (under two minutes on a CPU), ``full`` (the thesis's
-ensembles: 300 realizations for chapters 4-5, 100 per point for chapter 6, on a GPU).
+figures; :mod:`mdroll.studies.report` writes them and prints the table. Sizes: the rungs of
+:data:`mdroll.experiments.SIZES` (``test`` for the test suite, ``quick`` on a CPU, ``full`` the
+thesis's ensembles: 300 realizations for chapters 4-5, 100 per point for chapter 6, on a GPU).
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable
 
 from ..devices import resolve_device
-from ..params import ParameterError
-from . import coupling, low_band, spectrum, taper
+from ..experiments import Ladder, Registry, provenance
 from ..files import jsonable
-from .core import AGREES, DISAGREES, REPORTED, UNRESOLVED, Claim, Runner, git_commit
+from . import coupling, high_band, low_band, regions, taper
+from .core import AGREES, DISAGREES, REPORTED, UNRESOLVED, Claim, Runner
 
 #: Thesis-scale line: 2^20 springs of 5 um (the thesis's 5 m, rounded up to a fast FFT length).
 THESIS = {"L": 5.24288, "dx": 5e-6}
 CPU_QUICK = {"L": 1.0, "dx": 20e-6}
 CPU_TEST = {"L": 0.5, "dx": 20e-6}
-SIZES = ("test", "quick", "full")
 
 
 @dataclass(frozen=True)
 class Study:
-    """A study: its function ``run(runner, **size)``, the thesis's figures and equations it
-    reproduces, and its keyword arguments at each size of :data:`SIZES`."""
+    """A study: its function ``run(runner, **rung)``, the thesis's figures and equations it
+    reproduces, and its keyword arguments per rung (a :class:`~mdroll.experiments.Ladder`)."""
 
     name: str
     function: Callable
     figures: str
     equations: str
     title: str
-    sizes: dict = field(repr=False)
+    ladder: Ladder
 
 
-def _sizes(test: dict, quick: dict, full: dict) -> dict:
-    return {"test": test, "quick": quick, "full": full}
-
-
-STUDIES = {s.name: s for s in [
-    Study("regions", spectrum.regions, "Fig 2", "sec 4.1-4.2, eq 21, 23",
+STUDIES = Registry("study", ((s.name, s) for s in [
+    Study("regions", regions.regions, "Fig 2", "sec 4.1-4.2, eq 21, 23",
           "the four regions of the acceleration spectrum, located numerically",
-          _sizes({**CPU_TEST, "realizations": 32}, {"L": 2.0, "dx": 20e-6, "realizations": 192},
-                 {**THESIS, "realizations": 300})),
-    Study("transition", spectrum.transition, "Fig 3", "eq 21",
+          Ladder(test={**CPU_TEST, "realizations": 32}, quick={"L": 2.0, "dx": 20e-6, "realizations": 192},
+                 full={**THESIS, "realizations": 300})),
+    Study("transition", regions.transition, "Fig 3", "eq 21",
           "the transition at q_min v0 for three cutoffs, with and without renormalizing h0",
-          _sizes({**CPU_TEST, "realizations": 16}, {"L": 1.0, "dx": 10e-6, "realizations": 64},
-                 {**THESIS, "realizations": 300})),
-    Study("slope", spectrum.slope, "Fig 4", "eq 23",
+          Ladder(test={**CPU_TEST, "realizations": 16}, quick={"L": 1.0, "dx": 10e-6, "realizations": 64},
+                 full={**THESIS, "realizations": 300})),
+    Study("slope", high_band.slope, "Fig 4", "eq 23",
           "the power-law exponent alpha(H) against 2H + 3",
-          _sizes({**CPU_TEST, "realizations": 24, "hursts": (0.3, 0.6, 0.9)}, {**CPU_QUICK, "realizations": 96},
-                 {**THESIS, "realizations": 300})),
-    Study("modulation", spectrum.modulation, "Fig 5-6", "eq 26-27",
+          Ladder(test={**CPU_TEST, "realizations": 24, "hursts": (0.3, 0.6, 0.9)},
+                 quick={**CPU_QUICK, "realizations": 96}, full={**THESIS, "realizations": 300})),
+    Study("modulation", high_band.modulation, "Fig 5-6", "eq 26-27",
           "the modulation period pi v0 / a, and the transform of eq 27",
-          _sizes({**CPU_TEST, "realizations": 16}, {**CPU_QUICK, "realizations": 96}, {**THESIS, "realizations": 300})),
-    Study("rms", spectrum.rms, "Fig 7", "eq 28",
+          Ladder(test={**CPU_TEST, "realizations": 16}, quick={**CPU_QUICK, "realizations": 96},
+                 full={**THESIS, "realizations": 300})),
+    Study("rms", high_band.rms, "Fig 7", "eq 28",
           "the exponent of h0 in the high and the low band",
-          _sizes({**CPU_TEST, "realizations": 24}, {**CPU_QUICK, "realizations": 128}, {**THESIS, "realizations": 300})),
+          Ladder(test={**CPU_TEST, "realizations": 24}, quick={**CPU_QUICK, "realizations": 128},
+                 full={**THESIS, "realizations": 300})),
     Study("taper", taper.taper, "Fig 8", "sec 4.3.5",
           "the cause of the taper-off: leakage, non-linearity or discretization",
-          _sizes({"lengths": (0.25, 0.5, 1.0), "dx": 20e-6, "realizations": 12},
-                 {"lengths": (0.25, 0.5, 1.0, 2.0, 4.0), "dx": 20e-6, "realizations": 64},
-                 {"lengths": (1.31072, 2.62144, 5.24288, 10.48576), "dx": 5e-6, "realizations": 300})),
-    Study("proportionality", spectrum.proportionality, "Fig 9", "eq 29-31, 40",
+          Ladder(test={"lengths": (0.25, 0.5, 1.0), "dx": 20e-6, "realizations": 12},
+                 quick={"lengths": (0.25, 0.5, 1.0, 2.0, 4.0), "dx": 20e-6, "realizations": 64},
+                 full={"lengths": (1.31072, 2.62144, 5.24288, 10.48576), "dx": 5e-6, "realizations": 300})),
+    Study("proportionality", high_band.proportionality, "Fig 9", "eq 29-31, 40",
           "the acceleration PSD against C_1D(q) q^-2: fitted and predicted constants",
-          _sizes({**CPU_TEST, "realizations": 32}, {**CPU_QUICK, "realizations": 192}, {**THESIS, "realizations": 300})),
+          Ladder(test={**CPU_TEST, "realizations": 32}, quick={**CPU_QUICK, "realizations": 192},
+                 full={**THESIS, "realizations": 300})),
     Study("coupling", coupling.coupling, "Fig 11", "sec 5.1, eq 13",
           "coupled against decoupled dynamics, band by band",
-          _sizes({"L": 0.5, "dx": 20e-6, "realizations": 8}, {"L": 2.0, "dx": 20e-6, "realizations": 48},
-                 {**THESIS, "realizations": 300})),
+          Ladder(test={"L": 0.5, "dx": 20e-6, "realizations": 8}, quick={"L": 2.0, "dx": 20e-6, "realizations": 48},
+                 full={**THESIS, "realizations": 300})),
     Study("low-band", low_band.low_band, "Fig 13", "eq 48",
           "the exact low band against eq 48 and the closed form",
-          _sizes({**CPU_TEST, "realizations": 16}, {**CPU_QUICK, "realizations": 128}, {**THESIS, "realizations": 300})),
+          Ladder(test={**CPU_TEST, "realizations": 16}, quick={**CPU_QUICK, "realizations": 128},
+                 full={**THESIS, "realizations": 300})),
     Study("plateau", low_band.plateau, "Fig 14-20", "eq 51-58",
           "the low-frequency plateau B_F0 and the refit of the empirical law eq 56",
-          _sizes({**CPU_TEST, "realizations": 16, "hursts": (0.3, 0.55, 0.8), "q_min_factors": (0.5, 1.0, 2.0),
-                  "heights": (0.5e-6, 1e-6), "length_factors": (2.0,)},
-                 {**CPU_QUICK, "realizations": 64}, {**THESIS, "realizations": 100})),
+          Ladder(test={**CPU_TEST, "realizations": 16, "hursts": (0.3, 0.55, 0.8), "q_min_factors": (0.5, 1.0, 2.0),
+                       "heights": (0.5e-6, 1e-6), "length_factors": (2.0,)},
+                 quick={**CPU_QUICK, "realizations": 64}, full={**THESIS, "realizations": 100})),
     Study("rms-force", low_band.rms_force, "eq 59-61", "eq 59-61",
           "the RMS force in the plateau band of the thesis's example",
-          _sizes({**CPU_TEST, "realizations": 32}, {**CPU_QUICK, "realizations": 192}, {**THESIS, "realizations": 100})),
-]}
+          Ladder(test={**CPU_TEST, "realizations": 32}, quick={**CPU_QUICK, "realizations": 192},
+                 full={**THESIS, "realizations": 100})),
+]))
 
 
 @dataclass
 class StudyRun:
-    """A study's JSON record (see :func:`run_study`) and its figures (:class:`~.core.Figure`)."""
+    """A study's JSON record (see :func:`run_study`) and its figures
+    (:class:`~mdroll.experiments.Figure`)."""
 
     record: dict
     figures: list
 
 
 def check_name(name: str) -> Study:
-    if name not in STUDIES:
-        raise ParameterError(f"study = {name!r} is not allowed: choose one of {', '.join(STUDIES)}")
-    return STUDIES[name]
+    """The study ``name`` of :data:`STUDIES`, or a one-line ParameterError."""
+    return STUDIES.named(name)
 
 
 def run_study(name: str, size: str = "quick", device: str = "auto", seed: int = 0, progress: bool = False,
@@ -114,15 +114,12 @@ def run_study(name: str, size: str = "quick", device: str = "auto", seed: int = 
     claim (thesis claim, expected value and whose it is, measured value, standard error, unit,
     allowance, verdict, notes), every other measured number, each ensemble's spec
     (:meth:`mdroll.EnsembleSpec.as_dict`: parameters, seed, realizations, algorithm, mode,
-    boundary, window), steps and time, the environment (device, versions) and the git commit.
+    boundary, window), steps and time, and the provenance of :func:`mdroll.experiments.provenance`
+    (environment: device, versions, date; git commit).
     """
-    from ..provenance import environment
-
     study = check_name(name)
-    if size not in SIZES:
-        raise ParameterError(f"size = {size!r} is not allowed: choose one of {', '.join(SIZES)}")
     device = resolve_device(device) if cluster is None else device
-    arguments = {**study.sizes[size], **overrides}
+    arguments = {**study.ladder.rung(size), **overrides}
     runner = Runner(device, seed, progress, cluster)
     start = time.perf_counter()
     outcome = study.function(runner, **arguments)
@@ -130,17 +127,17 @@ def run_study(name: str, size: str = "quick", device: str = "auto", seed: int = 
     claims = outcome.claims
     record = {
         "study": study.name, "title": study.title, "thesis_figures": study.figures, "equations": study.equations,
-        "size": size, "arguments": arguments, "seed": seed, "device": device,
+        "arguments": arguments, "device": device,
         "verdicts": {v: sum(c.verdict == v for c in claims) for v in (AGREES, DISAGREES, UNRESOLVED, REPORTED)},
         "claims": [c.as_dict() for c in claims], "measurements": outcome.measurements,
         "resolution": outcome.resolution, "summary": outcome.summary, "ensembles": runner.record, "elapsed_s": elapsed,
         # the ensembles' devices are in each ensemble's record; this is the process that ran the study
-        "environment": environment(device if cluster is None else resolve_device("auto")),
-        "cluster": None if cluster is None else type(cluster).__name__, "git_commit": git_commit(),
+        **provenance(device if cluster is None else resolve_device("auto"), size, seed, arguments),
+        "cluster": None if cluster is None else type(cluster).__name__,
         "figures": [{"file": f"{f.name}.png", "caption": f.caption} for f in outcome.figures],
     }
     return StudyRun(jsonable(record), outcome.figures)
 
 
-__all__ = ["AGREES", "DISAGREES", "REPORTED", "SIZES", "STUDIES", "UNRESOLVED", "Claim", "Study", "StudyRun",
+__all__ = ["AGREES", "DISAGREES", "REPORTED", "STUDIES", "UNRESOLVED", "Claim", "Study", "StudyRun",
            "check_name", "run_study"]

@@ -1,5 +1,6 @@
-"""What every study shares: the claim and its verdict, the study's result, the runner that
-records every ensemble it runs, and the fits with confidence intervals.
+"""What every thesis study shares: the claim and its verdict, the study's result, the runner that
+records every ensemble it runs, the fits with confidence intervals and the curves of its figures
+(the figures themselves are :class:`mdroll.experiments.Figure`).
 
 A :class:`Claim` holds a thesis claim, the number it is tested against (the thesis's own, or a
 closed form of physics.md where the thesis gives none), the measured value and its standard
@@ -18,11 +19,8 @@ thesis observation the measurement contradicts) carries its explanation in ``kno
 from __future__ import annotations
 
 import math
-import subprocess
 import time
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -76,20 +74,10 @@ def claims_by(claims: list, prefix: str) -> tuple[float, float]:
 
 
 @dataclass
-class Figure:
-    """A figure of a study: ``draw(fig)`` fills a matplotlib Figure; saved as ``<name>.png``."""
-
-    name: str
-    caption: str
-    draw: Callable
-    size: tuple = (7.0, 4.5)
-
-
-@dataclass
 class StudyOutcome:
     """What a study function returns: its claims, every measured number (JSON-ready, with
-    standard errors), its figures, a sentence on what the statistics can resolve and a summary of
-    the findings, written from the measured numbers."""
+    standard errors), its figures (:class:`mdroll.experiments.Figure`), a sentence on what the
+    statistics can resolve and a summary of the findings, written from the measured numbers."""
 
     claims: list
     measurements: dict
@@ -155,22 +143,6 @@ def ratio_stderr(x: float, sx: float, y: float, sy: float, cov: float = 0.0) -> 
     """``x / y`` and its standard error by the delta method (``cov`` the covariance of x and y)."""
     r = x / y
     return r, abs(r) * math.sqrt(max((sx / x) ** 2 + (sy / y) ** 2 - 2 * cov / (x * y), 0.0))
-
-
-# ---------------------------------------------------------------------------- provenance and files
-def git_commit() -> str | None:
-    """The commit of the mdroll checkout (with ``+dirty`` for uncommitted changes), or None."""
-    root = Path(__file__).resolve().parents[2]
-    try:
-        commit = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True,
-                                timeout=10)
-        if commit.returncode != 0:
-            return None
-        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
-                               capture_output=True, text=True, timeout=10).stdout.strip()
-        return commit.stdout.strip() + ("+dirty" if dirty else "")
-    except (OSError, subprocess.SubprocessError):
-        return None
 
 
 # ---------------------------------------------------------------------------- plots

@@ -12,8 +12,9 @@ from __future__ import annotations
 import math
 
 from ..ensemble import measure
+from ..experiments import Figure
 from ..params import Params
-from .core import Claim, Figure, StudyOutcome, loglog, mark
+from .core import Claim, StudyOutcome, loglog, mark
 
 
 def bands(p: Params) -> dict:

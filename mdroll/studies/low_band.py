@@ -6,7 +6,7 @@ All runs are periodic (physics.md section 6): the low band is 30-40 dB under the
 an open series' leakage (see the taper study) would add to it. The plateau ``C_F0`` is defined
 under the project's PSD convention (physics.md section 6, the thesis's eq 57 with our
 normalization): the q -> 0 level of the two-sided force PSD, measured by fitting the
-closed-form low band's shape by one factor (:func:`mdroll.studies.model.plateau_level`); the
+closed-form low band's shape by one factor (:func:`mdroll.studies.band_averages.plateau_level`); the
 thesis's Fourier component is then ``B_F0 = sqrt(2 pi C_F0 / L)`` (eq 57) and its
 ``psi = B_F0 a / (E* R h0^2)`` (eq 51).
 """
@@ -19,9 +19,11 @@ import numpy as np
 
 from .. import physics
 from ..ensemble import measure
+from ..experiments import Figure
 from ..params import Params
-from .core import Claim, Figure, StudyOutcome, claims_by, fit_line, fit_power_law, loglog, mark, ratio_stderr
-from .model import band_rms_thesis, low_band as closed_low_band, plateau_level, plateau_thesis
+from .band_averages import plateau_level
+from .closed_forms import band_rms_thesis, low_band as closed_low_band, plateau_thesis
+from .core import Claim, StudyOutcome, claims_by, fit_line, fit_power_law, loglog, mark, ratio_stderr
 
 
 # ---------------------------------------------------------------------------- low band (Fig 13)

@@ -7,7 +7,9 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from ..experiments import markdown_table, text_table, write_figures, write_json
 from ..files import atomic_write
+from . import STUDIES
 from .core import AGREES, DISAGREES, REPORTED, UNRESOLVED
 from .records import read_record
 
@@ -34,11 +36,8 @@ def format_table(record: dict) -> str:
     """The study's table: thesis claim | expected | measured | uncertainty | verdict."""
     head = ("thesis claim", "expected", "measured", "uncertainty (1 sigma)", "verdict")
     rows = [(r[0][:70],) + r[1:] for r in table_rows(record)]
-    widths = [max(len(row[i]) for row in rows + [head]) for i in range(5)]
-    line = lambda row: "  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip()
     out = [f"{record['study']} ({record['thesis_figures']}; {record['equations']}), {record['size']} size, "
-           f"{record['elapsed_s']:.1f} s on {record['device']}", line(head), "-" * (sum(widths) + 8)]
-    out += [line(row) for row in rows]
+           f"{record['elapsed_s']:.1f} s on {record['device']}", text_table(head, rows)]
     out.append(f"resolution: {record['resolution']}")
     if record.get("summary"):
         out.append(f"findings: {record['summary']}")
@@ -47,36 +46,14 @@ def format_table(record: dict) -> str:
 
 def write_study(run, out) -> list[Path]:
     """Write ``<out>/<study>/<study>.json`` and its PNGs (each atomically); returns the paths."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import io
-
-    import matplotlib.pyplot as plt
-
     folder = Path(out) / run.record["study"]
     folder.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for figure in run.figures:
-        fig = plt.figure(figsize=figure.size, layout="constrained")
-        figure.draw(fig)
-        buffer = io.BytesIO()
-        fig.savefig(buffer, format="png", dpi=100)
-        plt.close(fig)
-        path = folder / f"{figure.name}.png"
-        with atomic_write(path) as file:
-            file.write(buffer.getvalue())
-        paths.append(path)
-    path = folder / f"{run.record['study']}.json"
-    with atomic_write(path, "w") as file:
-        file.write(json.dumps(run.record, indent=1) + "\n")
-    return [path] + paths
+    paths = write_figures(run.figures, folder)
+    return [write_json(folder / f"{run.record['study']}.json", run.record)] + paths
 
 
 def load_records(folder) -> list[dict]:
     """The study records under ``folder`` (``<study>/<study>.json``), in the registry's order."""
-    from . import STUDIES
-
     folder = Path(folder)
     records = []
     for name in STUDIES:
@@ -115,11 +92,9 @@ def page(records: list[dict], folder: Path, page_path: Path) -> str:
     lines += ["Verdicts: *agrees* (within the allowance + 3 standard errors, and resolved), *disagrees* "
               "(outside it; *known* when the project explains it), *not resolved at this size* (3 standard errors "
               "exceed the smallest discrepancy that matters), *reported* (a measurement with no number to test).", ""]
-    lines += ["| study | thesis | agrees | disagrees | not resolved | reported |", "|---|---|---|---|---|---|"]
-    for r in records:
-        v = r["verdicts"]
-        lines.append(f"| {r['study']} | {r['thesis_figures']} | {v['agrees']} | {v['disagrees']} | "
-                     f"{v['not resolved at this size']} | {v['reported']} |")
+    lines += markdown_table(("study", "thesis", "agrees", "disagrees", "not resolved", "reported"),
+                            [(r["study"], r["thesis_figures"], *(r["verdicts"][v] for v in (AGREES, DISAGREES, UNRESOLVED,
+                                                                                          REPORTED))) for r in records])
     for r in records:
         title = r["title"][:1].upper() + r["title"][1:]
         lines += ["", f"## {r['study']}", "", f"**Thesis {r['thesis_figures']} ({r['equations']}).** {_md(title)}.", ""]
@@ -132,8 +107,8 @@ def page(records: list[dict], folder: Path, page_path: Path) -> str:
             except ValueError:
                 pass
             lines += [f"![{fig['caption']}]({image.as_posix()})", "", f"*{fig['caption']}.*", ""]
-        lines += ["| claim | expected | measured | uncertainty (1 sigma) | verdict |", "|---|---|---|---|---|"]
-        lines += ["| " + " | ".join(_md(c) for c in row) + " |" for row in table_rows(r)]
+        lines += markdown_table(("claim", "expected", "measured", "uncertainty (1 sigma)", "verdict"),
+                                [[_md(c) for c in row] for row in table_rows(r)])
         notes = [f"- **{_md(c['name'])}**: {_md(c['note'])}" + (f" *Known disagreement:* {_md(c['known'])}" if c["known"] else "")
                  for c in r["claims"] if c["note"] or c["known"]]
         if notes:

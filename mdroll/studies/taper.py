@@ -21,9 +21,11 @@ import math
 
 import numpy as np
 
+from ..experiments import Figure
 from ..params import Params
-from .core import AGREES, DISAGREES, UNRESOLVED, Claim, Figure, StudyOutcome, claims_by, fit_power_law, loglog, mark
-from .model import band_means, band_slices, high_band, period_edges
+from .band_averages import band_means, band_slices, period_edges
+from .closed_forms import high_band
+from .core import AGREES, DISAGREES, UNRESOLVED, Claim, StudyOutcome, claims_by, fit_power_law, loglog, mark
 
 #: The taper starts where the open spectrum exceeds the periodic one by this fraction (+ 3 sigma).
 ONSET_EXCESS = 0.10

@@ -19,7 +19,7 @@ import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, fields
 
-from mdroll.params import ParameterError
+from mdroll.errors import ParameterError
 
 #: Support models: ``rigid`` (an immovable rail, zero receptance), ``continuous`` (the supports
 #: smeared along the rail, per length k / sleeper_spacing), ``discrete`` (one support per sleeper).

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mdroll.params import ParameterError
+from mdroll.errors import ParameterError
 
 from .beam import continuous_decay_rate, continuous_receptance
 from .periodic import discrete_decay_rate, discrete_receptance

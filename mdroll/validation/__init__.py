@@ -6,7 +6,8 @@ a :class:`Band`, a comparison and a tolerance; :func:`run_checks` runs the built
 disk between runs; :mod:`.report` writes the table, ``validation.json`` and JUnit XML.
 """
 
-from .api import BAND_UNITS, COMPARISONS, Band, Check, CheckResult, PredictionError
+from ..errors import PredictionError
+from .api import BAND_UNITS, COMPARISONS, Band, Check, CheckResult
 from .cache import EnsembleCache, default_cache_dir
 from .checks import CHECKS, SIZES, Context, ValidationSize
 from .discovery import ENTRY_POINT_GROUP, checks_from_toml, run_checks, select

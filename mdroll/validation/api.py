@@ -34,8 +34,8 @@ import numpy as np
 from ..ensemble import measure
 from ..ensemble.measure import Z_SIGMA, band_sum, independent_ratio, paired_ratio, period_bands
 from ..ensemble.spec import EnsembleSpec
-from ..errors import PredictionError
-from ..params import ParameterError, Params
+from ..errors import ParameterError, PredictionError
+from ..params import Params
 from ..physics import BAND_EDGE_TOLERANCE
 from .plots import spectrum_plot
 

@@ -28,7 +28,7 @@ import numpy as np
 from ..ensemble.result import EnsembleResult
 from ..ensemble.spec import EnsembleSpec
 from ..files import atomic_write
-from ..params import ParameterError
+from ..errors import ParameterError
 
 CACHE_ENV = "MDROLL_CACHE_DIR"
 

@@ -25,6 +25,7 @@ from ..forces.registry import REGISTRY
 from ..ensemble.measure import Z_SIGMA, independent_ratio, paired_ratio, period_bands
 from ..ensemble.spec import EnsembleSpec
 from ..ensemble.psd import wavenumbers
+from ..experiments import Ladder, Registry
 from ..params import Params
 from .api import Band, Check, CheckResult
 from .ensembles import KEEP_ROWS_UP_TO, EnsembleSource
@@ -39,19 +40,19 @@ EXACT_TOLERANCE = 1e-12
 
 @dataclass(frozen=True)
 class ValidationSize:
-    """Ensemble sizes: ``base`` is the periodic validation ensemble (its n_real realizations),
+    """The checks' parameters on one rung of the ladder (:data:`SIZES`): ``base`` is the periodic validation ensemble (its n_real realizations),
     ``coupled`` the open-boundary ensemble of the dynamics checks (resolution 2 pi v0 / L)."""
 
     base: Params
     coupled: Params
 
 
-SIZES = {
-    # 2-core CPU in CI: 20 um springs (253 per contact radius, a/dx >> 10), short lines
-    "quick": ValidationSize(base=Params(L=0.5, dx=20e-6, n_real=192), coupled=Params(L=5.24288, dx=20e-6, n_real=8)),
+SIZES = Ladder(
+    # a CPU in CI: 20 um springs (253 per contact radius, a/dx >> 10), short lines
+    quick=ValidationSize(base=Params(L=0.5, dx=20e-6, n_real=192), coupled=Params(L=5.24288, dx=20e-6, n_real=8)),
     # thesis scale, 300 x 2^20 points at the thesis's dx = 5 um (GPU)
-    "full": ValidationSize(base=Params(L=5.24288, n_real=300), coupled=Params(L=5.24288, n_real=300)),
-}
+    full=ValidationSize(base=Params(L=5.24288, n_real=300), coupled=Params(L=5.24288, n_real=300)),
+)
 
 
 @dataclass
@@ -290,17 +291,17 @@ def check_coupled_decoupled(ctx: Context) -> list[CheckResult]:
                   note="coupled / decoupled acceleration PSD on [2 omega_0, 8 q_min v0]").run(ctx.source)]
 
 
-#: The checks in the order of the issue, by the name ``--only`` takes.
-CHECKS = {
-    "tree_direct": check_exact_algorithms,
-    "eq40": check_eq40,
-    "eq48": check_eq48,
-    "low_band": check_low_band,
-    "eq58": check_eq58,
-    "eq21": check_eq21,
-    "eq23": check_eq23,
-    "eq26": check_eq26,
-    "resonance": check_resonance,
-    "eq28": check_eq28,
-    "coupled_decoupled": check_coupled_decoupled,
-}
+#: The built-in checks in the order of their numbers (1-11, their docstrings), by the name ``--only`` takes.
+CHECKS = Registry("check", [
+    ("tree_direct", check_exact_algorithms),
+    ("eq40", check_eq40),
+    ("eq48", check_eq48),
+    ("low_band", check_low_band),
+    ("eq58", check_eq58),
+    ("eq21", check_eq21),
+    ("eq23", check_eq23),
+    ("eq26", check_eq26),
+    ("resonance", check_resonance),
+    ("eq28", check_eq28),
+    ("coupled_decoupled", check_coupled_decoupled),
+])

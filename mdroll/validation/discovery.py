@@ -44,8 +44,9 @@ from importlib.metadata import entry_points
 
 from ..ensemble.spec import EnsembleSpec
 from ..files import read_toml
-from ..params import ParameterError, Params
-from .api import Band, Check, CheckResult, PredictionError
+from ..errors import ParameterError, PredictionError
+from ..params import Params
+from .api import Band, Check, CheckResult
 from .checks import CHECKS, SIZES, Context, ValidationSize
 from .ensembles import EnsembleSource
 
@@ -236,9 +237,7 @@ def run_checks(size: str | ValidationSize = "quick", only=None, seed: int = 0, d
     if providers is None:
         providers = select(only or ())
     if isinstance(size, str):
-        if size not in SIZES:
-            raise ParameterError(f"size = {size!r} is not allowed: choose one of {sorted(SIZES)}")
-        size = SIZES[size]
+        size = SIZES.rung(size)
     ctx = Context(size, seed, EnsembleSource(device, runner, cache, progress))
     results = []
     for provider in providers:

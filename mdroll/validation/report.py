@@ -2,26 +2,23 @@
 
 from __future__ import annotations
 
-import json
 import math
 import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+from ..experiments import Figure, text_table, write_figures, write_json
 from ..files import atomic_write
 from .api import CheckResult
 
 
 def format_table(results: list[CheckResult]) -> str:
     """One row per check: name, equation, measured, predicted, ratio, tolerance, PASS/FAIL."""
-    header = f"{'check':<22} {'eq':<18} {'measured':>12} {'predicted':>12} {'ratio':>8} {'tolerance':>10}  result"
-    rows = [header, "-" * len(header)]
-    for r in results:
-        rows.append(f"{r.name:<22} {r.equation:<18} {r.measured:>12.5g} {r.predicted:>12.5g} {_ratio_text(r):>8} "
-                    f"{r.tolerance_text():>10}  {'PASS' if r.passed else 'FAIL'}")
+    head = ("check", "eq", "measured", "predicted", "ratio", "tolerance", "result")
+    rows = [(r.name, r.equation, f"{r.measured:.5g}", f"{r.predicted:.5g}", _ratio_text(r), r.tolerance_text(),
+             "PASS" if r.passed else "FAIL") for r in results]
     passed = sum(r.passed for r in results)
-    rows.append(f"{passed}/{len(results)} passed")
-    return "\n".join(rows)
+    return text_table(head, rows, align="llrrrrl") + f"\n{passed}/{len(results)} passed"
 
 
 def _ratio_text(r: CheckResult) -> str:
@@ -71,29 +68,23 @@ def write_junit(results: list[CheckResult], path, **kwargs) -> Path:
     return path
 
 
+def figure(r: CheckResult) -> Figure:
+    """The figure of a check that draws one: its plot callback on one Axes, titled with the verdict."""
+    def draw(fig):
+        ax = fig.subplots()
+        r.plot(ax)
+        ax.set_title(f"{r.name} ({r.equation}): ratio {r.ratio:.4f}, {'PASS' if r.passed else 'FAIL'}", fontsize=9)
+
+    return Figure(slug(r.name), message(r), draw, size=(6, 4), dpi=110)
+
+
 def write_report(results: list[CheckResult], out, meta: dict) -> list[Path]:
-    """Write ``validation.json`` (records and ``meta``: size, seed, device, versions, date) and
-    one PNG per check that draws a figure, into the directory ``out``; returns the paths."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    """Write ``validation.json`` and one PNG per check that draws a figure into the directory
+    ``out``; returns the paths. The record: ``meta`` (the run's
+    :func:`mdroll.experiments.provenance`: size, seed, parameters, environment, commit; and the
+    cache's hits), whether every check passed and each check's record."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     record = {**meta, "passed": all(r.passed for r in results), "checks": [r.as_dict() for r in results]}
-    paths = [out / "validation.json"]
-    with atomic_write(paths[0], "w") as file:
-        json.dump(record, file, indent=2, default=float)
-    for r in results:
-        if r.plot is None:
-            continue
-        fig, ax = plt.subplots(figsize=(6, 4), layout="constrained")
-        r.plot(ax)
-        ax.set_title(f"{r.name} ({r.equation}): ratio {r.ratio:.4f}, {'PASS' if r.passed else 'FAIL'}", fontsize=9)
-        path = out / f"{slug(r.name)}.png"
-        with atomic_write(path) as file:
-            fig.savefig(file, dpi=110, format="png")
-        plt.close(fig)
-        paths.append(path)
-    return paths
+    return [write_json(out / "validation.json", record, indent=2)] + write_figures(
+        [figure(r) for r in results if r.plot is not None], out)

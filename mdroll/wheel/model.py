@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mdroll.params import ParameterError
+from mdroll.errors import ParameterError
 from mdroll.physics import TWO_PI
 
 KINDS = ("rigid", "modal")
