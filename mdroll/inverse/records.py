@@ -8,7 +8,7 @@ import json
 import math
 from pathlib import Path
 
-from ..params import ParameterError
+from ..errors import ParameterError
 
 #: What every row of a record holds, and the checks of its values.
 _ROW_FIELDS = {"passes": "an integer", "L": "a number", "error": "a table of numbers", "covered": "a table of true/false"}

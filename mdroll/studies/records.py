@@ -8,7 +8,7 @@ import json
 import math
 from pathlib import Path
 
-from ..params import ParameterError
+from ..errors import ParameterError
 
 TEXT, NUMBER, OPTIONAL_NUMBER, INTEGER, TABLE, LIST = "a text", "a number", "a number or null", "an integer", \
     "a table", "a list"
