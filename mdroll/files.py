@@ -4,6 +4,7 @@ part), TOML input with one-line errors, and values made JSON-ready."""
 from __future__ import annotations
 
 import contextlib
+import glob
 import math
 import os
 import tempfile
@@ -23,9 +24,14 @@ def atomic_write(path, mode: str = "wb"):
     """Open a temporary file beside ``path`` for writing (``mode`` "wb" or "w"), and on a normal
     exit flush it to disk and rename it over ``path`` (``os.replace``: atomic on POSIX). On an
     exception, or a kill before the rename, ``path`` is untouched and the temporary file
-    (``.<name>.<random>.tmp``) is removed or left aside, never read as an output."""
+    (``.<name>.<random>.tmp``) is removed or left aside (:func:`remove_stale_temporaries`), never
+    read as an output. An OS error (a full disk, a name too long, a directory at ``path``) names
+    ``path``, not the temporary file."""
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    except OSError as exc:
+        raise type(exc)(exc.errno, exc.strerror, str(path)) from None
     try:
         os.fchmod(fd, 0o666 & ~_UMASK)
         with os.fdopen(fd, mode) as file:
@@ -33,10 +39,21 @@ def atomic_write(path, mode: str = "wb"):
             file.flush()
             os.fsync(file.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
+        if isinstance(exc, OSError) and exc.errno is not None and not isinstance(exc, BrokenPipeError):
+            raise type(exc)(exc.errno, exc.strerror, str(path)) from None
         raise
+
+
+def remove_stale_temporaries(path) -> None:
+    """Remove the temporary files that killed :func:`atomic_write` calls of ``path`` left beside
+    it; only where no other process can be writing ``path`` (a locked run directory)."""
+    path = Path(path)
+    for stale in path.parent.glob(f".{glob.escape(path.name)}.*.tmp"):
+        with contextlib.suppress(OSError):
+            stale.unlink()
 
 
 def read_toml(path, what: str, error: type[Exception] = ValueError) -> dict:
@@ -47,7 +64,9 @@ def read_toml(path, what: str, error: type[Exception] = ValueError) -> dict:
         raise error(f"{what} {str(path)!r} does not exist")
     try:
         return tomllib.loads(file.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+    except UnicodeDecodeError:
+        raise error(f"{what} {path}: not a text file (not UTF-8); TOML is UTF-8 text") from None
+    except tomllib.TOMLDecodeError as exc:  # its message names the line and column
         raise error(f"{what} {path}: not valid TOML ({exc})") from None
 
 

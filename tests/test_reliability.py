@@ -81,7 +81,7 @@ def test_api_rejects_bad_input_naming_it(call, needle):
 
 # ----------------------------------------------------------------------------- bad input, CLI
 CLI_CASES = [
-    (["run", "--set", "n_real=abc"], "not a number"),
+    (["run", "--set", "n_real=abc"], "not an integer"),
     (["run", "--realizations", "0", "--device", "cpu"], "--realizations 0"),
     (["run", "--first", "-3", "--device", "cpu"], "--first"),
     (["run", "--memory-limit", "0", "--device", "cpu"], "--memory-limit"),

@@ -195,7 +195,7 @@ def test_profile_files_and_errors(tmp_path):
         measured.load_profile(tmp_path / "bad.csv")
     with pytest.raises(ParameterError, match="no such file"):
         measured.load_profile(tmp_path / "none.csv")
-    line = measured.profile_line(measured.make_profile(np.sin(np.arange(30000) * 0.01), 5e-5), Params(L=1.0, dx=5e-5))
+    line = measured.profile_line(measured.make_profile(1e-6 * np.sin(np.arange(30000) * 0.01), 5e-5), Params(L=1.0, dx=5e-5))
     assert line.shape == (1, 20000)
     rolled = studies.roll_profile(measured.make_profile(1e-6 * np.sin(np.arange(30000) * 0.01), 5e-5),
                                   Params(L=1.0, dx=5e-5))

@@ -3,7 +3,10 @@ each with ``add_parser(sub)`` and ``execute(args) -> exit code``, and :mod:`.com
 share.
 
 A user's error (:class:`~mdroll.errors.MdrollError`, a bad option included) prints one line on
-stderr and exits with code 2; any other exception is a bug and shows its traceback.
+stderr and exits with code 2; any other exception is a bug and shows its traceback. Stderr holds
+mdroll's own lines only: the libraries' Python warnings (matplotlib's on a plot's empty or
+non-positive data, numpy's) are silenced unless ``python -W`` or ``PYTHONWARNINGS`` asks for them;
+what a user must know is an ``mdroll: warning:`` line.
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ import errno
 import os
 import signal
 import sys
+import warnings
 
 from ..errors import MdrollError, NonFiniteError
 from . import bench, invert, merge, params, roughness, run, study, validate
@@ -33,9 +37,10 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-#: OS errors that the machine's state causes, not mdroll (a full disk, a read-only or forbidden
-#: folder, a name too long): one line naming the path.
-_ENVIRONMENT_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EACCES, errno.EPERM, errno.EROFS, errno.ENAMETOOLONG}
+#: OS errors that the machine's state or a path causes, not mdroll (a full disk, a read-only or
+#: forbidden folder, a name too long, a directory where a file is meant): one line naming the path.
+_ENVIRONMENT_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EACCES, errno.EPERM, errno.EROFS, errno.ENAMETOOLONG,
+                       errno.EISDIR, errno.ENOTDIR, errno.EFBIG, errno.ELOOP}
 
 
 class _Terminated(KeyboardInterrupt):
@@ -53,14 +58,26 @@ def _error(text: str) -> int:
     return 2
 
 
+def _kept(command) -> str:
+    """What an OS error while writing leaves: outputs are atomic, so the file is its old version or absent."""
+    kept = "that file was not written (every output is written whole or not at all: any earlier version is kept"
+    if command == "run":
+        kept += "; the checkpoint of the finished batches too, for mdroll run --resume DIR"
+    return kept + ")"
+
+
 def main(argv=None) -> int:
     """Run ``mdroll`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
-    previous = None
+    previous, command = None, None
     with contextlib.suppress(ValueError):  # only the main thread may set a handler
         previous = signal.signal(signal.SIGTERM, _raise_terminated)
     try:
         args = build_parser().parse_args(argv)
-        code = COMMANDS[args.command].execute(args)
+        command = args.command
+        with warnings.catch_warnings():
+            if not sys.warnoptions:  # python -W or PYTHONWARNINGS shows them
+                warnings.simplefilter("ignore")
+            code = COMMANDS[args.command].execute(args)
         sys.stdout.flush()  # here, so that a closed pipe is met inside the handlers below
         return code
     except NonFiniteError as exc:  # a force or spectrum not finite: realization and stage named
@@ -77,9 +94,10 @@ def main(argv=None) -> int:
     except OSError as exc:  # after BrokenPipeError, an OSError too
         if exc.errno not in _ENVIRONMENT_ERRNOS:
             raise
-        return _error((f"{exc.filename}: " if exc.filename else "") + exc.strerror)
+        return _error((f"{exc.filename}: " if exc.filename else "") + f"{exc.strerror}; {_kept(command)}")
     except _Terminated:
-        print("mdroll: terminated; continue with mdroll run --resume DIR", file=sys.stderr)
+        after = "; continue with mdroll run --resume DIR" if command == "run" else ""
+        print(f"mdroll: terminated{after}", file=sys.stderr)
         return 143  # 128 + SIGTERM
     except KeyboardInterrupt:
         print("mdroll: interrupted", file=sys.stderr)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ..bench import format_table, plot_study, run_study
+from ..devices import resolve_device
 from ..experiments import write_json
 from .common import output_dir, output_options, progress_printer, size_options
 
@@ -15,8 +16,9 @@ def add_parser(sub) -> None:
 
 
 def execute(args) -> int:
+    devices = [resolve_device(d) for d in args.device] if args.device else None  # before the folder is made
     out = output_dir(args)
-    record = run_study(args.size or "quick", devices=args.device, progress=progress_printer(args))
+    record = run_study(args.size or "quick", devices=devices, progress=progress_printer(args))
     write_json(out / "bench.json", record, indent=2)
     plot_study(record, out / "bench.png")
     print(format_table(record))

@@ -10,6 +10,7 @@ import dataclasses
 import datetime
 import fcntl
 import os
+import re
 import secrets
 import sys
 import tempfile
@@ -32,9 +33,17 @@ _held_locks: list[int] = []
 
 
 class Parser(argparse.ArgumentParser):
-    """An argument parser whose usage errors are a :class:`UsageError` (one line, exit 2, no usage dump)."""
+    """An argument parser whose usage errors are a :class:`UsageError` (one line, exit 2, no usage
+    dump), and that takes a negative number as an option's value (``--seed -1``, ``--dx -1e-3``,
+    ``--segment -inf``) as well as ``--opt=-x``: no option of mdroll looks like a number."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|nan)$", re.IGNORECASE)
 
     def error(self, message):
+        if message.endswith("expected one argument"):
+            message += " (a value starting with '-' is given as --option=VALUE)"
         raise UsageError(message)
 
 
@@ -107,8 +116,9 @@ def _parse_value(key: str, text: str):
         if key == "n_real":
             return int(text)
         return float(text)
-    except ValueError as exc:
-        raise UsageError(f"--set {key}={text}: not a number ({exc})") from None
+    except ValueError:
+        kind = "an integer" if key == "n_real" else "a number"
+        raise UsageError(f"--set {key}={text}: not {kind}") from None
 
 
 def load_config(path: str) -> dict:
@@ -194,8 +204,11 @@ def reading(what: str, path):
         yield
     except MdrollError:
         raise
-    except (OSError, ValueError) as exc:
-        raise UsageError(f"{what} {str(path)!r} cannot be read: {exc}") from None
+    except OSError as exc:
+        raise UsageError(f"{what} {str(path)!r} cannot be read: {exc.strerror or 'an input/output error'}") from None
+    except ValueError:
+        raise UsageError(f"{what} {str(path)!r} cannot be read: it is not in a format its option reads (see "
+                         "mdroll COMMAND --help)") from None
 
 
 # ----------------------------------------------------------------------------- output

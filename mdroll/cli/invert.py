@@ -4,17 +4,21 @@ inverse.png and a table), the round-trip study, and its report."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import sys
 from pathlib import Path
 
 from ..devices import resolve_device
-from ..errors import UsageError
+from ..errors import ParameterError, UsageError
 from ..experiments import write_json
 from ..files import atomic_write
-from .common import cluster_runner, output_dir, output_options, progress_printer, reading, size_options
+from .common import (check_directory_path, cluster_runner, output_dir, output_options, progress_printer, reading,
+                     size_options)
 
+#: Spectra of more bins than this get a progress line before the fit (the readers bound them).
+LARGE_SPECTRUM = 50_000
 #: What ``invert`` writes (``--force`` removes the old ones first).
 #: The exit code of a fit the acceptance gate rejects (:mod:`mdroll.inverse.acceptance`).
 REJECTED = 3
@@ -89,14 +93,11 @@ def execute(args) -> int:
 
 def _report(args) -> int:
     """``--report JSON ...``: the Markdown tables of round-trip records."""
+    from ..inverse.records import read_record
     from ..inverse.roundtrip_report import merge_records, report
 
-    records = []
-    for name in args.report:
-        try:
-            records.append(json.loads(Path(name).read_text()))
-        except (OSError, ValueError) as error:
-            raise UsageError(f"--report {name}: not a readable round-trip record ({error})") from None
+    with _option("--report"):
+        records = [read_record(name) for name in args.report]
     print(report(merge_records(records)))
     return 0
 
@@ -134,14 +135,22 @@ def _fit(args) -> int:
     """SPECTRUM: the fit, its plot and table, and the bootstrap's intervals with ``--bootstrap N``."""
     from ..inverse import fit, read_spectrum
     from ..inverse.plot import plot_fit
-    from ..inverse.roundtrip import bootstrap
+    from ..inverse.roundtrip import bootstrap, check_replicates
 
     path = Path(args.spectrum)
     if path.is_dir():
         path = path / "spectra.npz"
+    if args.bootstrap:
+        with _option("--bootstrap"):
+            check_replicates(args.bootstrap)
+    if args.out:
+        check_directory_path(Path(args.out), "--out")
     with reading("spectrum file", path):
         spectrum = read_spectrum(path, quantity=args.quantity, window=args.window, frequency_unit=args.frequency_unit,
                                  sided=args.sided, density=args.density, passes=args.passes)
+    if spectrum.omega.size > LARGE_SPECTRUM:
+        progress_printer(args)(f"{path}: {spectrum.omega.size} bins; the fit's time grows with them (--bin K "
+                               "averages K neighbouring bins first)")
     free = [n.strip() for n in args.free.split(",") if n.strip()] if args.free else None
     result = fit(spectrum, known=_known(args.known), free=free, band=_band(args.band) if args.band else None,
                  passes=args.passes, bin=args.bin, profile=not args.no_profile, correction=args.correction,
@@ -160,6 +169,9 @@ def _fit(args) -> int:
     with atomic_write(out / "inverse.json", "w") as file:
         json.dump({"source": str(path), **result.to_dict()}, file, indent=1)
     print(result.table())
+    if not result.success:
+        print(f"mdroll: warning: the optimizer stopped without converging ({result.message}); the estimates and "
+              "intervals may not be the likelihood's maximum", file=sys.stderr)
     if result.bootstrap:
         b = result.bootstrap
         print(f"bootstrap ({b['replicates']} replicates): percentile 95%, bias, bias-corrected estimate, basic 95%")
@@ -173,6 +185,15 @@ def _fit(args) -> int:
               "(inverse.json: \"accepted\": false)", file=sys.stderr)
         return REJECTED
     return 0
+
+
+@contextlib.contextmanager
+def _option(name: str):
+    """A ParameterError of a value checked for the option ``name``, as one line naming the option."""
+    try:
+        yield
+    except ParameterError as exc:
+        raise UsageError(f"{name}: {exc}") from None
 
 
 def _band(text: str):

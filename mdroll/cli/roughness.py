@@ -3,9 +3,11 @@ filter beside CNOSSOS-EU, and measured profiles (docs/roughness.md)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from ..devices import resolve_device
 from ..errors import UsageError
-from .common import Parser, output_dir, output_options, size_options
+from .common import Parser, check_directory_path, output_dir, output_options, size_options
 
 
 def add_parser(sub) -> None:
@@ -45,5 +47,7 @@ def execute(args) -> int:
     if args.task == "filter":
         tasks.contact_filter(output_dir(args))
         return 0
-    tasks.profile(args.file, args.dx, args.segment, output_dir(args))
+    if args.out:
+        check_directory_path(Path(args.out), "--out")
+    tasks.profile(args.file, args.dx, args.segment, lambda: output_dir(args))
     return 0

@@ -11,15 +11,18 @@ from pathlib import Path
 from .. import plotting
 from ..devices import resolve_device
 from ..distributed import saved_specs
-from ..forces.registry import ALGORITHMS, DEFAULT_ALGORITHMS, REGISTRY
+from ..arguments import check_integer
+from ..forces.registry import (ALGORITHMS, DEFAULT_ALGORITHMS, REGISTRY, algorithm_entry, coupled_entry,
+                               default_algorithm)
 from ..ensemble.batching import check_count_fits, check_run_fits, realization_bytes
 from ..ensemble.checkpoint import CHECKPOINT, read_checkpoint
+from ..ensemble.lines import check_seed
 from ..ensemble.pipeline import run_ensemble
 from ..ensemble.result import result_summary
 from ..ensemble.spec import EnsembleSpec
 from ..ensemble.validity import parameter_concerns, result_concerns
 from ..errors import SchedulerLost, UsageError
-from ..files import atomic_write
+from ..files import atomic_write, remove_stale_temporaries
 from ..railway.report import write_band_outputs
 from .common import (build_params, build_structures, cluster_options, cluster_runner, format_value, lock, output_dir, output_options,
                      param_options)
@@ -82,6 +85,7 @@ def execute(args) -> int:
         params = build_params(args)
         settings = _settings(args, RUN_DEFAULTS)
         realizations = _realizations(args, params)
+    _check_settings(settings, args.batch)
     _refuse_outside_validity(args, params)
     memory = None
     if args.memory_limit is not None:
@@ -94,6 +98,8 @@ def execute(args) -> int:
     if not args.resume:
         out = output_dir(args, clear=RUN_OUTPUTS + (CHECKPOINT,))
     track, wheel = build_structures(args)
+    for name in RUN_OUTPUTS + (CHECKPOINT,):  # the directory is locked: no other writer
+        remove_stale_temporaries(out / name)
     result = run_ensemble(params, realizations=realizations, device=device, batch=args.batch,
                           progress=not args.no_progress, checkpoint=out / CHECKPOINT, resume=bool(args.resume),
                           memory_limit=memory, track=track, wheel=wheel, **settings)
@@ -156,6 +162,16 @@ def _settings(args, base: dict) -> dict:
             raise UsageError(f"--thesis-estimator with --boundary {args.boundary}: the thesis's record is open")
         args.boundary, args.window = "open", False
     return {k: base[k] if getattr(args, k) is None else getattr(args, k) for k in RUN_DEFAULTS}
+
+
+def _check_settings(settings: dict, batch) -> None:
+    """The run's settings checked as :func:`mdroll.run_ensemble` checks them, before the output
+    directory is made: a bad seed, algorithm for the mode or batch leaves no folder behind."""
+    check_seed(settings["seed"])
+    mode = settings["mode"]
+    (algorithm_entry if mode == "decoupled" else coupled_entry)(settings["algorithm"] or default_algorithm(mode))
+    if batch is not None:
+        check_integer("batch", batch, 1, "realizations")
 
 
 def _refuse_outside_validity(args, params) -> None:

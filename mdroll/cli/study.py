@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from ..errors import UsageError
 from ..studies import STUDIES, check_name, run_study
 from ..studies.report import format_table, write_page, write_study
-from .common import cluster_options, cluster_runner, output_dir, output_options, size_options
+from .common import check_file_path, cluster_options, cluster_runner, output_dir, output_options, size_options
 
 
 def add_parser(sub) -> None:
@@ -53,10 +52,10 @@ def _report(args) -> int:
         raise UsageError("study report needs the folder of study results, e.g. `mdroll study report docs/studies`")
     if not Path(args.folder).is_dir():
         raise UsageError(f"study report: {args.folder!r} is not a folder")
+    if args.page:
+        check_file_path(Path(args.page), "--page")
     try:
         print(f"wrote {write_page(args.folder, args.page)}")
     except FileNotFoundError as exc:
         raise UsageError(str(exc)) from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise UsageError(f"study report: a record under {args.folder!r} is not valid JSON: {exc}") from None
     return 0

@@ -125,13 +125,13 @@ def read_checkpoint(path) -> tuple[dict, dict]:
     (empty, truncated, not a checkpoint), one written by another mdroll version (its
     realizations and spectra need not be this version's), one holding NaN or infinity."""
     try:
-        with np.load(path) as data:
+        with np.load(path, allow_pickle=False) as data:
             meta = json.loads(str(data["meta"]))
             arrays = {k: data[k] for k in CHECKPOINT_ARRAYS}
         missing = [k for k in CHECKPOINT_META if k not in meta]
-    except (OSError, EOFError, ValueError, KeyError, TypeError, zipfile.BadZipFile) as exc:
-        raise ParameterError(f"checkpoint {path} cannot be read: it is empty, truncated or not an mdroll checkpoint "
-                             f"({type(exc).__name__}: {exc}); start the run again without --resume") from None
+    except (OSError, EOFError, ValueError, KeyError, TypeError, AttributeError, zipfile.BadZipFile):
+        raise ParameterError(f"checkpoint {path} cannot be read: it is empty, truncated or not an mdroll checkpoint; "
+                             "start the run again without --resume") from None
     if missing:
         raise ParameterError(f"checkpoint {path} lacks {missing}: not a checkpoint of this mdroll; start the run again")
     written_by = meta["versions"].get("mdroll")

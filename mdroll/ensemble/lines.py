@@ -8,8 +8,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..devices import is_cuda, resolve_device, warp
+from ..arguments import check_params
 from ..errors import ParameterError
 from ..params import Params
+from ..roughness.kinds import check_spectrum
 from .. import buffers
 from .batching import check_count_fits
 from ..fft import irfft_rows
@@ -110,6 +112,8 @@ def random_spectra(params: Params, seed: int, realizations, device: str, roughne
     from ..roughness.line_grid import from_params, mode_amplitude_table, resolve_level
 
     wp = warp()
+    check_params(params)
+    check_spectrum(roughness)
     seed = check_seed(seed)
     indices = realization_indices(realizations)
     n = params.n_points

@@ -33,6 +33,7 @@ from .batching import check_batch_fits, check_run_fits, default_batch
 from .checkpoint import RunTotals
 from .coupled import contact_compliance, coupled_series
 from .lines import check_seed, realization_indices, rough_lines
+from ..roughness.kinds import check_spectrum
 from ..roughness.line_grid import from_params, line_rms
 from .result import EnsembleResult
 from .psd import psd_moments_of_batch, series_sums, to_host
@@ -161,6 +162,7 @@ def run_ensemble(
     """
     # every argument checked here, once
     check_params(params)
+    check_spectrum(roughness)
     check_choice("mode", mode, MODES)
     if algorithm is None:
         algorithm = default_algorithm(mode)

@@ -13,7 +13,7 @@ from .._version import __version__
 from ..files import atomic_write
 from ..errors import ParameterError
 from ..params import Params
-from .psd import RunningMoments
+from .psd import RunningMoments, wavenumbers
 from .resolution import estimator_name, resolution
 
 #: The stages of a run whose times a result reports, in the order a batch passes them.
@@ -27,6 +27,12 @@ RESULT_META = ("n_real", "seed", "algorithm", "mode", "boundary", "window", "dev
                "force_rms", "contact_lost_steps", "timings", "batch", "realizations")
 #: The run settings merged results must share (besides their physical parameters).
 MERGE_SAME = ("seed", "algorithm", "mode", "boundary", "window", "steps")
+
+
+def compatible_versions(a: str, b: str) -> bool:
+    """Whether spectra written by mdroll versions ``a`` and ``b`` may be merged: the same release
+    series (major.minor), in which the generator and the spectra's definitions do not change."""
+    return a.split(".")[:2] == b.split(".")[:2]
 
 
 @dataclass
@@ -75,6 +81,7 @@ class EnsembleResult:
     batch: int = 0
     realizations: list = field(default_factory=list)
     window: bool | None = False
+    mdroll_version: str = __version__
 
     @property
     def resolution(self):
@@ -101,21 +108,23 @@ class EnsembleResult:
         """The result saved at ``path`` by :meth:`save`; anything else (a truncated or foreign
         file, a checkpoint) is refused with a :class:`ParameterError` naming the file."""
         try:
-            with np.load(path) as data:
+            with np.load(path, allow_pickle=False) as data:
                 meta = json.loads(str(data["meta"]))
                 if "done" in meta:
                     raise ParameterError(f"{path} is a checkpoint of an unfinished run, not its spectra: finish the "
                                          "run with mdroll run --resume DIR first")
                 arrays = {k: data[k] for k in RESULT_ARRAYS}
-            meta.pop("mdroll_version", None)
             meta.setdefault("window", None)  # files from before the window was recorded
+            meta.setdefault("mdroll_version", "unknown")
             params = Params(**{**meta.pop("params"), "n_real": meta["n_real"]})
-            return cls(params=params, **arrays, **meta)
-        except ParameterError:
-            raise
-        except (OSError, EOFError, ValueError, KeyError, TypeError, zipfile.BadZipFile) as exc:
+            result = cls(params=params, **arrays, **meta)
+        except ParameterError as exc:
+            raise ParameterError(f"{path}: {exc}") from None
+        except (OSError, EOFError, ValueError, KeyError, TypeError, AttributeError, zipfile.BadZipFile):
             raise ParameterError(f"{path} is not an mdroll spectra file (as written by mdroll run or merge): it is "
-                                 f"truncated, corrupt or of another kind ({type(exc).__name__}: {exc})") from None
+                                 "truncated, corrupt or of another kind") from None
+        _check_content(result, path)
+        return result
 
     @classmethod
     def merge(cls, results: list["EnsembleResult"]) -> "EnsembleResult":
@@ -123,8 +132,14 @@ class EnsembleResult:
         process, of any sizes): per-bin means and variances merged exactly (Chan et al.).
         Results that differ in a parameter (other than their count) or a run setting are
         refused, naming the field and both values."""
+        if isinstance(results, EnsembleResult) or not isinstance(results, (list, tuple)):
+            raise ParameterError(f"results must be a list of mdroll.EnsembleResult, got {type(results).__name__}")
         if not results:
             raise ParameterError("merge needs at least one result, got none")
+        for number, other in enumerate(results, start=1):
+            if not isinstance(other, EnsembleResult):
+                raise ParameterError(f"results: item {number} is a {type(other).__name__}, not an mdroll.EnsembleResult")
+            _check_content(other, f"result {number}")
         first = results[0]
         physics = first.params.physical_dict()
         for number, other in enumerate(results[1:], start=2):
@@ -134,9 +149,16 @@ class EnsembleResult:
                        if getattr(other, k) != getattr(first, k)]
             if differ:
                 raise ParameterError(f"cannot merge results 1 and {number}: they differ in " + "; ".join(differ))
-        indices = [i for r in results for i in r.realizations]
+        for number, other in enumerate(results, start=1):
+            if other.q.shape != first.q.shape or not np.array_equal(other.q, first.q):
+                raise ParameterError(f"cannot merge results 1 and {number}: their wavenumber grids q differ")
+            if not compatible_versions(other.mdroll_version, first.mdroll_version):
+                raise ParameterError(f"cannot merge results 1 and {number}: written by mdroll {first.mdroll_version} "
+                                     f"and {other.mdroll_version}, whose spectra may differ; rerun one of them")
+        indices = [int(i) for r in results for i in r.realizations]
         if len(set(indices)) != len(indices):
-            raise ParameterError("cannot merge results that share realizations (each would count twice)")
+            shared = sorted({i for i in indices if indices.count(i) > 1})[:5]
+            raise ParameterError(f"cannot merge results that share realizations {shared} (each would count twice)")
         moments = {}
         for name in ("force_psd", "accel_psd"):
             m = RunningMoments(first.q.size)
@@ -156,6 +178,41 @@ class EnsembleResult:
             timings={k: sum(r.timings.get(k, 0.0) for r in results) for k in STAGES},
             batch=max(r.batch for r in results), realizations=indices, window=first.window,
         )
+
+
+def _check_content(result: EnsembleResult, where) -> None:
+    """Refuse a result whose content contradicts itself, naming ``where`` (its file) and the
+    field: a realization list absent or not of ``n_real`` distinct indices >= 0, arrays not of
+    the grid's length, a spectrum or standard error that is not finite and >= 0."""
+    n = result.n_real
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise ParameterError(f"{where}: n_real = {n!r}, expected a positive integer")
+    indices = result.realizations
+    if not isinstance(indices, (list, tuple, range)) or len(indices) != n:
+        count = len(indices) if isinstance(indices, (list, tuple, range)) else "no"
+        raise ParameterError(f"{where}: its realization list has {count} indices but n_real = {n}; the file is "
+                             "damaged or was edited (a merge needs each part's realizations)")
+    if any(isinstance(i, bool) or not isinstance(i, (int, np.integer)) or i < 0 for i in indices) \
+            or len(set(indices)) != n:
+        raise ParameterError(f"{where}: its realization list must hold {n} distinct integers >= 0")
+    steps = result.steps
+    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 2:
+        raise ParameterError(f"{where}: steps = {steps!r}, expected an integer >= 2")
+    grid = wavenumbers(steps, result.params.dx)
+    size = grid.shape
+    for name in RESULT_ARRAYS:
+        values = np.asarray(getattr(result, name))
+        if values.shape != size or values.ndim != 1 or values.dtype.kind != "f":
+            raise ParameterError(f"{where}: {name} has shape {values.shape}, expected {size} floats (one per wavenumber)")
+        expected = {"q": grid, "omega": grid * result.params.v0}.get(name)
+        if expected is not None and not np.allclose(values, expected, rtol=1e-12, atol=0.0):
+            raise ParameterError(f"{where}: {name} is not the grid of {steps} steps of dx = {result.params.dx!r} m "
+                                 f"(q_k = 2 pi k / (steps dx){', omega = q v0' if name == 'omega' else ''})")
+        bad = ~np.isfinite(values) | (values < 0)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise ParameterError(f"{where}: {name}[{i}] = {values[i]!r}; a spectrum and its standard error must be "
+                                 "finite and >= 0")
 
 
 def result_summary(result: EnsembleResult) -> dict:

@@ -16,8 +16,11 @@ import json
 from collections.abc import Iterable
 from dataclasses import dataclass
 
+from ..arguments import check_params
 from ..errors import ParameterError
 from ..params import Params
+from ..roughness.kinds import check_spectrum
+from .lines import check_seed
 from ..forces.registry import default_algorithm
 
 
@@ -58,6 +61,9 @@ class EnsembleSpec:
     integrator: str = "semi-implicit"
 
     def __post_init__(self) -> None:
+        check_params(self.params)
+        check_spectrum(self.roughness)
+        check_seed(self.seed)
         if self.algorithm is None:  # the registry's default for the mode
             object.__setattr__(self, "algorithm", default_algorithm(self.mode))
         for name in ("first", "realizations"):
@@ -125,6 +131,13 @@ def run_specs(specs: Iterable[EnsembleSpec], device: str = "auto", progress: boo
     ``device`` is resolved on each worker). The results are the same to rounding either way.
     Returns one :class:`mdroll.EnsembleResult` per spec (its units: :func:`mdroll.run_ensemble`).
     """
+    if isinstance(specs, (EnsembleSpec, Params, str, bytes)) or not isinstance(specs, Iterable):
+        raise ParameterError(f"specs must be a list of mdroll.EnsembleSpec, got {type(specs).__name__}")
+    specs = list(specs)
+    for number, spec in enumerate(specs):
+        if not isinstance(spec, EnsembleSpec):
+            raise ParameterError(f"specs[{number}] is a {type(spec).__name__}, not an mdroll.EnsembleSpec (wrap "
+                                 "parameters as EnsembleSpec(params, realizations=N))")
     if runner is not None:
         return runner.run_specs(specs, device=device, progress=progress, **options)
     return [spec.run(device=device, progress=progress, **options) for spec in specs]

@@ -4,7 +4,9 @@
 Params only refuses what cannot be computed (omega_0 dt >= 2, a/dx < 10, ...). These checks
 flag what can be computed but no longer means what the thesis's model says:
 
-- ``h0 > MAX_H0_OVER_D0 d0``: the MDR picture of physics.md (a Hertz contact at indentation d0
+- a line RMS ``h_rms > MAX_H0_OVER_D0 d0`` (h0 for the ``"rms"`` level; for a spectrum of its own
+  level, iso3095, bands or a table, the RMS of the generated lines,
+  :func:`mdroll.roughness.line_grid.line_rms`, whatever h0 says): the MDR picture of physics.md (a Hertz contact at indentation d0
   with small height deviations, eq 14 and section 5.1) assumes h0 << d0; beyond it the wheel
   rides on asperities, the mean force leaves F_N (1.5 MN for F_N = 40 kN at h0 = 1 mm), and the
   decoupled mode's constant d = d0 is no longer the wheel's indentation.
@@ -22,8 +24,13 @@ flag what can be computed but no longer means what the thesis's model says:
 
 from __future__ import annotations
 
+import math
+
+import numpy as np
+
 from .. import physics
 from ..params import Params
+from ..roughness.line_grid import from_params, line_rms, linear_force_psd
 from .resolution import REASONS
 
 #: The largest h0 / d0 taken as small roughness.
@@ -41,10 +48,18 @@ def parameter_concerns(params: Params) -> list[str]:
     """Sentences naming each parameter that takes ``params`` out of the model's validity (empty
     when none does); see the module's docstring."""
     concerns = []
-    if params.h0 > MAX_H0_OVER_D0 * params.d0:
+    if params.level == "rms":
+        rms, name = params.h0, f"h0 = {params.h0!r} m"
+    else:
+        spectrum = from_params(params)
+        rms = line_rms(params, spectrum)
+        force = math.sqrt(2.0 * params.dq * float(np.sum(linear_force_psd(params, spectrum))))
+        name = (f"the roughness line of roughness = {params.roughness!r} (its own level) has RMS {rms:.4g} m, a "
+                f"dynamic force of {100 * force / params.F_N:.3g} % of F_N; it")
+    if rms > MAX_H0_OVER_D0 * params.d0:
         concerns.append(
-            f"h0 = {params.h0!r} m is {params.h0 / params.d0:.3g} d0 (d0 = {params.d0:.4g} m): the model assumes "
-            f"roughness small against the indentation (h0 <= {MAX_H0_OVER_D0} d0); the wheel rides on asperities "
+            f"{name} is {rms / params.d0:.3g} d0 (d0 = {params.d0:.4g} m): the model assumes "
+            f"roughness small against the indentation (RMS <= {MAX_H0_OVER_D0} d0); the wheel rides on asperities "
             "and the mean force and spectra are not the thesis's"
         )
     omega_dt = params.omega_0 * params.dt

@@ -78,6 +78,7 @@ def fit(spectrum: Spectrum, known: dict | None = None, free=None, band=None, pas
 
     Returns a :class:`~mdroll.inverse.result.FitResult`. Bad input ends with a ParameterError naming it.
     """
+    _check_arguments(spectrum, known, free, passes, bin)
     if fill_check not in FILL_CHECKS:
         raise ParameterError(f"fill_check = {fill_check!r} is not allowed: use one of {', '.join(map(repr, FILL_CHECKS))}")
     mode = _correction_mode(correction, spectrum)
@@ -191,6 +192,22 @@ def _result(problem: Problem, theta, best, spectrum: Spectrum, profile: bool, pr
         lower = min((min(v["delta"]) for v in result.profiles.values()), default=0.0)
         result.gof["profile_found_lower_minimum"] = bool(lower < -0.5)
     return result
+
+
+def _check_arguments(spectrum, known, free, passes, bin) -> None:
+    """The types of :func:`fit`'s arguments, each named in a ParameterError (their values are
+    checked where they are used)."""
+    if not isinstance(spectrum, Spectrum):
+        raise ParameterError(f"spectrum must be an mdroll.inverse.Spectrum (read_spectrum, table_spectrum or "
+                             f"from_result), got {type(spectrum).__name__}")
+    if known is not None and not isinstance(known, dict):
+        raise ParameterError(f"known must be a dict {{name: value}}, got {type(known).__name__}")
+    if free is not None and (isinstance(free, str) or not isinstance(free, (list, tuple))
+                             or not all(isinstance(n, str) for n in free)):
+        raise ParameterError(f"free = {free!r} is not allowed: give a list of parameter names, e.g. ['H', 'h0']")
+    for name, value in (("passes", passes), ("bin", bin)):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1):
+            raise ParameterError(f"{name} = {value!r} is not allowed: it must be a positive integer")
 
 
 def _correction_mode(correction, spectrum: Spectrum) -> str:

@@ -95,6 +95,11 @@ class Problem:
         self.bin_size = bin_size
         self.omega = self.omega_all.reshape(-1, bin_size).mean(axis=1)
         self.data = spectrum.psd[index].reshape(-1, bin_size).mean(axis=1)
+        with_power = int(np.sum(self.data >= np.finfo(np.float64).tiny))
+        if with_power < needed_bins:
+            raise ParameterError(f"band {self.band[0]:.6g}..{self.band[1]:.6g} rad/s holds {with_power} bins with power "
+                                 f"(PSD above {np.finfo(np.float64).tiny:.3g}); at least {needed_bins} are needed for "
+                                 f"{len(self.free)} free parameters: the spectrum is zero there")
         self.passes_assumed = passes is None and spectrum.passes is None
         self.passes = int(passes if passes is not None else (spectrum.passes or 1))
         self.kappa = self.passes * bin_size
@@ -141,7 +146,12 @@ class Problem:
 
 def to_fitted(name: str, value: float) -> float:
     """A parameter's value in the fitted scale: its logarithm, or as is (``PARAMETERS[name][1]``)."""
-    return math.log(value) if PARAMETERS[name][1] == "log" else float(value)
+    if PARAMETERS[name][1] != "log":
+        return float(value)
+    if not (math.isfinite(value) and value > 0):
+        raise ParameterError(f"{name} = {value!r} is not allowed: it is fitted on a log scale and must be positive "
+                             "and finite (a starting value from a spectrum without power, or one given so)")
+    return math.log(value)
 
 
 def from_fitted(name: str, value: float) -> float:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import math
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -181,12 +182,13 @@ def read_spectrum(path, quantity: str | None = None, window: bool | None = None,
     its own record says whether the run used the Hann window (``window`` True or False must agree
     with it); the table options must not be given. For a table ``window`` None means False.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise ParameterError(f"spectrum file {str(path)!r} does not exist")
+    path = _file(path)
     if path.suffix == ".npz":
-        with np.load(path) as data:
-            is_mdroll = "meta" in data.files and "q" in data.files
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                is_mdroll = "meta" in data.files and "q" in data.files
+        except (OSError, EOFError, ValueError, zipfile.BadZipFile):
+            raise ParameterError(f"{path} is not a readable NPZ file (truncated, or another format)") from None
         if is_mdroll:
             given = [n for n, v in (("frequency_unit", frequency_unit), ("sided", sided), ("density", density),
                                     ("passes", passes)) if v is not None]
@@ -194,12 +196,40 @@ def read_spectrum(path, quantity: str | None = None, window: bool | None = None,
                 raise ParameterError(f"{path} is an mdroll spectra.npz, whose units are known: {', '.join(given)} "
                                      "must not be given")
             result = EnsembleResult.load(path)
-            if window is not None and result.window is not None and bool(window) != result.window:
-                raise ParameterError(f"window = {window} for {path}, whose run was "
-                                     f"{'windowed' if result.window else 'not windowed'}: drop the window option")
-            return from_result(result, quantity or "accel", window)
-    return read_table(path, quantity=quantity or "accel", frequency_unit=frequency_unit, sided=sided, density=density,
+            return from_result(result, quantity or "accel", describable(result, path, window))
+    return read_table(path, quantity=quantity, frequency_unit=frequency_unit, sided=sided, density=density,
                       passes=passes, window=bool(window))
+
+
+def describable(result, path, window: bool | None) -> bool:
+    """The window of the mdroll run at ``path``, after refusing what the forward model cannot
+    describe (naming the file): a coupled run (the model is the decoupled response of section
+    5.1), a roughness other than the power law (eq 33, the model's), a single realization (no
+    spread to weigh the bins by), ``window`` that contradicts the run's record (a run that
+    recorded no window at all takes the ``window`` given)."""
+    if result.mode != "decoupled":
+        raise ParameterError(f"{path}: a {result.mode} run; the inverse model is the decoupled response (section "
+                             "5.1), so it would fit what it cannot describe: invert a decoupled run")
+    if result.params.roughness != "powerlaw":
+        raise ParameterError(f"{path}: roughness = {result.params.roughness!r}; the inverse model is the power law "
+                             "of eq 33: invert a run with roughness = 'powerlaw'")
+    if result.n_real < 2:
+        raise ParameterError(f"{path}: one realization; the fit needs at least 2 averaged passes")
+    if result.window is None:
+        return bool(window)
+    if window is not None and bool(window) != result.window:
+        raise ParameterError(f"window = {window} for {path}, whose run was "
+                             f"{'windowed' if result.window else 'not windowed'}: drop the window option")
+    return bool(result.window)
+
+
+def _file(path) -> Path:
+    if not isinstance(path, (str, Path)):
+        raise ParameterError(f"path must be a file name, got {type(path).__name__}")
+    path = Path(path)
+    if not path.is_file():
+        raise ParameterError(f"spectrum file {str(path)!r} does not exist")
+    return path
 
 
 def read_table(path, quantity: str = "accel", frequency_unit: str | None = None, sided: str | None = None,
@@ -214,19 +244,10 @@ def read_table(path, quantity: str = "accel", frequency_unit: str | None = None,
     "rad/s" (per rad/s); the PSD in SI units ((m/s^2)^2 or N^2 per unit frequency). A leading
     zero-frequency row is dropped. Converted as in the module docstring.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise ParameterError(f"spectrum file {str(path)!r} does not exist")
+    path = _file(path)
     declared: dict = {}
     if path.suffix == ".npz":
-        with np.load(path) as data:
-            missing = [k for k in ("frequency", "psd") if k not in data.files]
-            if missing:
-                raise ParameterError(f"{path}: the table lacks the array(s) {missing} (it needs frequency and psd)")
-            columns = [data["frequency"], data["psd"]] + ([data["stderr"]] if "stderr" in data.files else [])
-            for key in ("frequency_unit", "sided", "density", "quantity", "passes"):
-                if key in data.files:
-                    declared[key] = data[key].item()
+        columns = _read_npz(path, declared)
     elif path.suffix in (".csv", ".txt", ".tsv"):
         columns = _read_csv(path)
     else:
@@ -234,8 +255,13 @@ def read_table(path, quantity: str = "accel", frequency_unit: str | None = None,
     frequency_unit = frequency_unit or declared.get("frequency_unit")
     sided = sided or declared.get("sided")
     density = density or declared.get("density")
-    quantity = declared.get("quantity", quantity) if quantity is None else quantity
+    if quantity is not None and declared.get("quantity", quantity) != quantity:
+        raise ParameterError(f"{path}: declares quantity {declared['quantity']!r}, but {quantity!r} was asked for")
+    quantity = quantity or declared.get("quantity", "accel")
     passes = passes if passes is not None else declared.get("passes")
+    if passes is not None and (isinstance(passes, bool) or not float(passes).is_integer() or passes < 1):
+        raise ParameterError(f"{path}: passes = {passes!r} is not allowed: the number of averaged passes must be a "
+                             "positive integer")
     for name, value, allowed in (("frequency_unit", frequency_unit, FREQUENCY_UNITS), ("sided", sided, SIDES),
                                  ("density", density, DENSITIES)):
         if value is None:
@@ -246,9 +272,57 @@ def read_table(path, quantity: str = "accel", frequency_unit: str | None = None,
                           passes=None if passes is None else int(passes), window=window, source=str(path))
 
 
+#: The largest table a fit reads (rows): a spectrum's bins, far more than any measured one has.
+MAX_TABLE_ROWS = 1_000_000
+#: The declared conventions an NPZ table may hold, each a text, and ``passes`` a number.
+_DECLARED = ("frequency_unit", "sided", "density", "quantity", "passes")
+
+
+def _read_npz(path: Path, declared: dict) -> list[np.ndarray]:
+    """The columns of an NPZ table, its declarations into ``declared``; a truncated, pickled or
+    malformed file is refused naming the file and the array."""
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            missing = [k for k in ("frequency", "psd") if k not in data.files]
+            if missing:
+                raise ParameterError(f"{path}: the table lacks the array(s) {missing} (it needs frequency and psd)")
+            names = ["frequency", "psd"] + (["stderr"] if "stderr" in data.files else [])
+            columns = [data[k] for k in names]
+            for key in _DECLARED:
+                if key in data.files:
+                    value = data[key]
+                    if value.size != 1:
+                        raise ParameterError(f"{path}: {key} must be a single value, got an array of shape {value.shape}")
+                    declared[key] = value.item()
+    except ParameterError:
+        raise
+    except (OSError, EOFError, ValueError, KeyError, zipfile.BadZipFile):
+        raise ParameterError(f"{path} is not a readable NPZ table (truncated, pickled objects or another format); it "
+                             "needs the float arrays frequency and psd") from None
+    for name, column in zip(names, columns):
+        if column.ndim != 1 or column.dtype.kind not in "iuf":
+            raise ParameterError(f"{path}: {name} must be a 1-D array of numbers, got {column.dtype} of shape "
+                                 f"{column.shape}")
+        if column.size != columns[0].size:
+            raise ParameterError(f"{path}: {name} has {column.size} values, frequency {columns[0].size}")
+        if column.size > MAX_TABLE_ROWS:
+            raise ParameterError(f"{path}: {column.size} rows, more than the {MAX_TABLE_ROWS} a fit reads; bin the "
+                                 "spectrum first")
+    for key in ("frequency_unit", "sided", "density", "quantity"):
+        if key in declared and not isinstance(declared[key], str):
+            raise ParameterError(f"{path}: {key} must be a text, got {declared[key]!r}")
+    if "passes" in declared and not isinstance(declared["passes"], (int, float)):
+        raise ParameterError(f"{path}: passes must be a number, got {declared['passes']!r}")
+    return columns
+
+
 def _read_csv(path: Path) -> list[np.ndarray]:
     rows = []
-    for number, line in enumerate(path.read_text().splitlines(), start=1):
+    try:
+        text = path.read_text()
+    except UnicodeDecodeError:
+        raise ParameterError(f"{path}: not a text table (not UTF-8); a CSV of frequency, psd[, stderr]") from None
+    for number, line in enumerate(text.splitlines(), start=1):
         text = line.split("#", 1)[0].strip()
         if not text:
             continue
@@ -262,6 +336,8 @@ def _read_csv(path: Path) -> list[np.ndarray]:
         if len(values) not in (2, 3) or (rows and len(values) != len(rows[0])):
             raise ParameterError(f"{path}, line {number}: expected 2 or 3 columns (frequency, psd[, stderr]) in every "
                                  f"row, got {len(values)}")
+        if len(rows) >= MAX_TABLE_ROWS:
+            raise ParameterError(f"{path}: more than the {MAX_TABLE_ROWS} rows a fit reads; bin the spectrum first")
         rows.append(values)
     if not rows:
         raise ParameterError(f"{path}: the table has no rows")

@@ -76,6 +76,17 @@ SIZES = Ladder(
 )
 
 
+#: The most bootstrap replicates (each an ensemble and a fit): beyond, the percentiles do not move.
+MAX_BOOTSTRAP = 10_000
+
+
+def check_replicates(replicates) -> int:
+    """``replicates`` if it is a bootstrap's count (2 .. :data:`MAX_BOOTSTRAP`), else a ParameterError."""
+    if isinstance(replicates, bool) or not isinstance(replicates, int) or not 2 <= replicates <= MAX_BOOTSTRAP:
+        raise ParameterError(f"bootstrap = {replicates!r} is not allowed: it needs 2 to {MAX_BOOTSTRAP} replicates")
+    return replicates
+
+
 def bootstrap(spectrum, result, replicates: int, device: str = "auto", seed: int = 1_000_003, bin: int = 1,
               runner=None) -> dict:
     """Parametric bootstrap: simulate ``replicates`` ensembles with mdroll at the estimate (K passes
@@ -88,12 +99,11 @@ def bootstrap(spectrum, result, replicates: int, device: str = "auto", seed: int
     same at the truth. Only for mdroll spectra (the simulation's L, dx and boundary are needed).
     ``runner``: where the replicates' ensembles run (``run_specs(..., runner=)``, e.g. a
     :class:`mdroll.distributed.DaskRunner`); None: in this process on ``device``."""
+    check_replicates(replicates)
     sim = spectrum.simulation
     if not sim:
         raise ParameterError("the bootstrap simulates at the estimate and needs the simulation's L and dx: it is "
                              "available for mdroll spectra only")
-    if isinstance(replicates, bool) or not isinstance(replicates, int) or replicates < 2:
-        raise ParameterError(f"bootstrap = {replicates!r} is not allowed: it needs at least 2 replicates")
     params = simulation_params({**result.estimates, "v0": result.known["v0"]}, sim, result.passes)
     specs = [EnsembleSpec(params, seed=seed + i, realizations=result.passes, boundary=sim["boundary"],
                           mode=sim["mode"], algorithm=sim["algorithm"], window=spectrum.window)

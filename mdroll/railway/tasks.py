@@ -125,11 +125,13 @@ def contact_filter_text(comparison: dict) -> str:
     return "\n".join(lines)
 
 
-def profile(file: str, dx: float | None, segment: float | None, out: Path) -> None:
+def profile(file: str, dx: float | None, segment: float | None, output) -> None:
     """``mdroll roughness profile``: profile_psd.csv (q rad/m, C m^3 two-sided, 95 % lower and
-    upper; a roughness_table for roughness = "table") and profile_bands.csv (L_r per band)."""
+    upper; a roughness_table for roughness = "table") and profile_bands.csv (L_r per band), in
+    the folder ``output()`` returns, called once the profile is read and its PSD estimated."""
     prof = measured.load_profile(file, dx)
     estimate = measured.welch_psd(prof, segment)
+    out = output()
     rows = ["# Welch PSD of " + str(file) + f": Hann window, {estimate.segments} segments, dof {estimate.dof:.1f}",
             "q_rad_per_m,C_m3,lower_95,upper_95"]
     rows += [f"{q:.10g},{c:.10g},{lo:.10g},{hi:.10g}" for q, c, lo, hi in

@@ -60,6 +60,15 @@ def check_kind(kind) -> str:
     return kind
 
 
+def check_spectrum(value):
+    """``value`` if it is a :class:`RoughnessSpectrum` or None (the argument ``roughness`` of the
+    API's ensembles and lines), else a ParameterError naming it."""
+    if value is not None and not isinstance(value, RoughnessSpectrum):
+        raise ParameterError(f"roughness = {value!r} is not allowed: give a spectrum of mdroll.roughness (e.g. "
+                             "mdroll.roughness.iso3095()) or None; the model names go in Params(roughness=...)")
+    return value
+
+
 class RoughnessSpectrum:
     """A roughness spectrum C(q) of a given kind.
 

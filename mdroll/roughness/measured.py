@@ -16,7 +16,15 @@ from scipy import signal, stats
 from .. import physics
 from ..errors import ParameterError
 from ..params import Params
-from .tabulated import Tabulated, read_two_columns
+from .tabulated import Tabulated, read_numbers, read_two_columns
+
+
+#: A measured profile's sample spacing (m): a trolley samples every millimetre or finer, never metres.
+MIN_DX, MAX_DX = 1e-7, 0.01
+#: The largest RMS height (m) a rail or wheel roughness profile has; above, the unit is wrong.
+MAX_PROFILE_RMS = 1e-3
+#: The most samples a profile may hold (a 100 km scan at 1 mm).
+MAX_PROFILE_POINTS = 100_000_000
 
 
 @dataclass(frozen=True)
@@ -41,18 +49,26 @@ def load_profile(path, dx: float | None = None) -> Profile:
     if dx is None:
         x, h = read_two_columns(file, "profile")
         steps = np.diff(x)
-        if x.size < 16 or np.any(steps <= 0) or not np.allclose(steps, steps.mean(), rtol=1e-6):
+        if x.size < 16 or not np.all(np.isfinite(x)) or np.any(steps <= 0) or \
+                not np.allclose(steps, steps.mean(), rtol=1e-6):
             raise ParameterError(f"profile = {str(path)!r}: x must increase uniformly over at least 16 points "
                                  "(resample it, or give one column h and dx)")
         dx = float(steps.mean())
+        if not MIN_DX <= dx <= MAX_DX:
+            raise ParameterError(f"profile = {str(path)!r}: x steps by {dx:.4g}, outside a profile's spacing "
+                                 f"{MIN_DX:g} .. {MAX_DX:g} m: give x in metres")
     else:
         if not (isinstance(dx, (int, float)) and dx > 0 and np.isfinite(dx)):
             raise ParameterError(f"dx = {dx!r} is not allowed: the profile's spacing must be a positive length (m)")
-        try:
-            h = np.load(file) if file.suffix.lower() == ".npy" else np.loadtxt(file, comments="#", ndmin=1)
-        except (ValueError, OSError) as exc:
-            raise ParameterError(f"profile = {str(path)!r} cannot be read as one numeric column: {exc}") from None
-        h = np.asarray(h, dtype=np.float64).ravel()
+        if not MIN_DX <= dx <= MAX_DX:
+            raise ParameterError(f"dx = {dx!r} m is not allowed: a profile's spacing lies in {MIN_DX:g} .. {MAX_DX:g} m "
+                                 "(give it in metres)")
+        h = read_numbers(file, "profile")
+        if h.ndim == 2 and h.shape[1] == 1:
+            h = h[:, 0]
+        if h.ndim != 1:
+            raise ParameterError(f"profile = {str(path)!r} has {h.shape[1] if h.ndim == 2 else h.ndim} columns: --dx "
+                                 "(dx) is for one column of heights; drop it to read the columns x, h")
     return make_profile(h, dx, str(path))
 
 
@@ -61,7 +77,14 @@ def make_profile(h, dx: float, source: str = "") -> Profile:
     h = np.asarray(h, dtype=np.float64)
     if h.ndim != 1 or h.size < 16 or not np.all(np.isfinite(h)):
         raise ParameterError(f"profile {source!r}: heights must be a finite 1D series of at least 16 points")
-    return Profile(signal.detrend(h, type="linear"), float(dx), source)
+    if h.size > MAX_PROFILE_POINTS:
+        raise ParameterError(f"profile {source!r}: {h.size} points, more than {MAX_PROFILE_POINTS}; split it")
+    h = signal.detrend(h, type="linear")
+    rms = float(np.sqrt(np.mean(h * h)))
+    if rms > MAX_PROFILE_RMS:
+        raise ParameterError(f"profile {source!r}: RMS height {rms:.4g} m, above the {MAX_PROFILE_RMS:g} m of any rail "
+                             "or wheel roughness: heights must be in metres (micrometres x 1e-6)")
+    return Profile(h, float(dx), source)
 
 
 @dataclass(frozen=True)

@@ -122,6 +122,44 @@ def iso3095() -> BandLevels:
 
 
 
+def read_numbers(file: Path, name: str) -> np.ndarray:
+    """The numbers of a CSV (``#`` comment lines and one header line allowed; comma, semicolon,
+    tab or space separated; every row as long as the first) or an NPY array of numbers, as float64
+    (one row per line); ParameterError naming ``name``, the file and the line otherwise."""
+    if file.suffix.lower() == ".npy":
+        try:
+            data = np.load(file, allow_pickle=False)
+        except (ValueError, OSError, EOFError):
+            raise ParameterError(f"{name} = {str(file)!r} is not a readable NPY array of numbers (truncated, "
+                                 "pickled objects or another format)") from None
+        if data.dtype.kind not in "iuf":
+            raise ParameterError(f"{name} = {str(file)!r} holds {data.dtype} values, not numbers")
+        return data.astype(np.float64)
+    try:
+        text = file.read_text()
+    except UnicodeDecodeError:
+        raise ParameterError(f"{name} = {str(file)!r} is not a text table (not UTF-8): give a CSV or an NPY "
+                             "file") from None
+    rows = []
+    for number, line in enumerate(text.splitlines(), start=1):
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        fields = [f for f in line.replace(";", ",").replace("\t", ",").replace(" ", ",").split(",") if f]
+        try:
+            row = [float(f) for f in fields]
+        except ValueError:
+            if rows:
+                raise ParameterError(f"{name} = {str(file)!r}, line {number}: {line[:40]!r} is not a row of "
+                                     "numbers") from None
+            continue  # the header
+        if rows and len(row) != len(rows[0]):
+            raise ParameterError(f"{name} = {str(file)!r}, line {number}: {len(row)} columns, the first row has "
+                                 f"{len(rows[0])}")
+        rows.append(row)
+    return np.array(rows, dtype=np.float64)
+
+
 def read_two_columns(path, name: str) -> tuple[np.ndarray, np.ndarray]:
     """Two float columns from a CSV (``#`` comment lines and one header line allowed; comma,
     semicolon, tab or space separated) or an NPY array of shape (K, 2); ParameterError naming
@@ -129,25 +167,7 @@ def read_two_columns(path, name: str) -> tuple[np.ndarray, np.ndarray]:
     file = Path(path)
     if not file.is_file():
         raise ParameterError(f"{name} = {str(path)!r}: no such file")
-    try:
-        if file.suffix.lower() == ".npy":
-            data = np.load(file, allow_pickle=False)
-        else:
-            rows = []
-            for line in file.read_text().splitlines():
-                line = line.strip()
-                if not line or line.startswith("#"):
-                    continue
-                fields = [f for f in line.replace(";", ",").replace("\t", ",").replace(" ", ",").split(",") if f]
-                try:
-                    rows.append([float(f) for f in fields])
-                except ValueError:
-                    if rows:
-                        raise
-                    continue  # the header
-            data = np.array(rows, dtype=np.float64)
-    except (ValueError, OSError) as exc:
-        raise ParameterError(f"{name} = {str(path)!r} cannot be read as two numeric columns: {exc}") from None
+    data = read_numbers(file, name)
     if data.ndim != 2 or data.shape[1] != 2 or data.shape[0] < 1:
         raise ParameterError(f"{name} = {str(path)!r} must hold two numeric columns, got shape {data.shape}")
     return data[:, 0].astype(np.float64), data[:, 1].astype(np.float64)

@@ -12,6 +12,7 @@ from ..experiments import markdown_table, text_table, write_figures, write_json
 from ..files import atomic_write
 from . import STUDIES
 from .core import AGREES, DISAGREES, REPORTED, UNRESOLVED
+from .records import read_record
 
 
 def _number(value, unit: str = "") -> str:
@@ -69,7 +70,7 @@ def load_records(folder) -> list[dict]:
     for name in STUDIES:
         path = folder / name / f"{name}.json"
         if path.is_file():
-            records.append(json.loads(path.read_text()))
+            records.append(read_record(path, (AGREES, DISAGREES, UNRESOLVED, REPORTED)))
     return records
 
 

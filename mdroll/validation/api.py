@@ -50,7 +50,9 @@ BAND_UNITS = ("q_min", "rad/m", "omega_0", "rad/s")
 class CheckResult:
     """One validation record.
 
-    ``passed`` is ``|ratio - 1| <= tolerance`` for relative checks (``kind="relative"``),
+    ``passed`` is ``|ratio - 1| <= tolerance < 1`` with ``ratio > 0`` for relative checks
+    (``kind="relative"``: a tolerance of 100 % or more, which a ratio near 0 would meet, fails
+    as too wide to test the claim),
     ``|measured - predicted| <= tolerance`` for ``kind="absolute"`` and ``measured >= predicted``
     for ``kind="minimum"``; ``kind="report"`` records a measured property and passes when it is
     finite. ``details`` holds extra numbers worth keeping; ``plot`` draws the figure on an Axes.
@@ -74,8 +76,8 @@ class CheckResult:
 
     @property
     def passed(self) -> bool:
-        if self.kind == "relative":
-            return abs(self.ratio - 1.0) <= self.tolerance
+        if self.kind == "relative":  # a positive ratio within a tolerance that can fail it (< 100 %)
+            return self.ratio > 0 and abs(self.ratio - 1.0) <= self.tolerance < 1.0
         if self.kind == "absolute":
             return abs(self.measured - self.predicted) <= self.tolerance
         if self.kind == "minimum":
@@ -135,6 +137,8 @@ def call_prediction(name: str, prediction, x: np.ndarray, params: Params):
     :class:`PredictionError` naming the check when it raises or is not finite."""
     try:
         value = np.asarray(prediction(x, params), dtype=np.float64)
+    except SystemExit as exc:  # sys.exit in a prediction must not end mdroll as a success
+        raise PredictionError(f"check {name!r}: its prediction called sys.exit({exc.code!r})") from None
     except Exception as exc:  # a user's prediction may fail in any way: bad input, named
         raise PredictionError(f"check {name!r}: its prediction raised {type(exc).__name__}: {exc}") from None
     if value.ndim and value.shape != x.shape:
@@ -170,6 +174,12 @@ class Check:
     note: str = ""
 
     def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise ParameterError(f"check name = {self.name!r} is not allowed: give a non-empty text")
+        for label in ("allowance", "k"):
+            value = getattr(self, label)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ParameterError(f"check {self.name!r}: {label} = {value!r} is not allowed: it must be a number")
         if self.comparison not in COMPARISONS:
             raise ParameterError(f"comparison = {self.comparison!r} is not allowed: choose one of "
                                  f"{', '.join(COMPARISONS)}")
@@ -178,6 +188,13 @@ class Check:
         if not (self.allowance >= 0 and self.k >= 0 and math.isfinite(self.allowance) and math.isfinite(self.k)):
             raise ParameterError(f"check {self.name!r}: allowance = {self.allowance!r} and k = {self.k!r} must be "
                                  "finite and >= 0")
+        if self.comparison != "slope" and self.allowance >= 1:
+            raise ParameterError(f"check {self.name!r}: allowance = {self.allowance!r} is not allowed for a relative "
+                                 "comparison: below 1 (100 %), or a ratio near 0 would pass")
+        for label in ("spec", "reference"):
+            value = getattr(self, label)
+            if value is not None and not isinstance(value, EnsembleSpec):
+                raise ParameterError(f"check {self.name!r}: {label} = {value!r} must be an mdroll.EnsembleSpec or None")
         if not isinstance(self.band, Band):
             raise ParameterError(f"check {self.name!r}: band = {self.band!r} must be a mdroll.validation.Band")
         if self.comparison in ("slope", "period") and self.band.on_omega:

@@ -39,6 +39,7 @@ import math
 import inspect
 import os
 import sys
+from collections.abc import Iterable
 from importlib.metadata import entry_points
 
 from ..ensemble.spec import EnsembleSpec
@@ -74,6 +75,8 @@ def _import_from_working_directory(module_name: str):
 def load_object(target: str):
     """The object named by ``"package.module:attribute"`` (looked up in the working directory
     first, as ``python -m`` does, then among the installed packages), or a ParameterError."""
+    if not isinstance(target, str):
+        raise ParameterError(f"check {target!r} is not a text of the form package.module:function")
     module_name, sep, attribute = target.partition(":")
     if not sep or not module_name or not attribute:
         raise ParameterError(f"check {target!r} is not of the form package.module:function")
@@ -81,6 +84,12 @@ def load_object(target: str):
         obj = _import_from_working_directory(module_name)
     except ImportError as exc:
         raise ParameterError(f"check {target!r}: cannot import {module_name!r} ({exc})") from None
+    except SyntaxError as exc:
+        raise ParameterError(f"check {target!r}: {exc.filename}, line {exc.lineno}: a syntax error ({exc.msg})") from None
+    except SystemExit as exc:
+        raise ParameterError(f"check {target!r}: importing {module_name!r} called sys.exit({exc.code!r})") from None
+    except Exception as exc:  # a user's module may fail in any way at import: named, one line
+        raise ParameterError(f"check {target!r}: importing {module_name!r} raised {type(exc).__name__}: {exc}") from None
     for part in attribute.split("."):
         if not hasattr(obj, part):
             raise ParameterError(f"check {target!r}: {module_name!r} has no attribute {attribute!r}")
@@ -100,14 +109,39 @@ def installed_providers() -> dict:
     return out
 
 
+#: The type each key of a [[check]] table must have (besides spec and reference, tables).
+_KEY_TYPES = {"name": (str, "a text"), "prediction": (str, "a text package.module:function"),
+              "comparison": (str, "a text"), "band_unit": (str, "a text"), "whole_periods": (bool, "true or false"),
+              "allowance": ((int, float), "a number"), "k": ((int, float), "a number"),
+              "quantity": (str, "a text"), "paired": (bool, "true or false"), "equation": (str, "a text"),
+              "unit": (str, "a text"), "note": (str, "a text"), "spec": (dict, "a table"),
+              "reference": (dict, "a table")}
+
+
+def _check_types(table: dict, where: str) -> None:
+    """Refuse a [[check]] value of the wrong type, naming the key and what it must be."""
+    for key, (kind, text) in _KEY_TYPES.items():
+        if key in table and (not isinstance(table[key], kind) or (kind != bool and isinstance(table[key], bool))):
+            raise ParameterError(f"{where}: {key} = {table[key]!r} is not allowed: it must be {text}")
+    band = table["band"]
+    if not (isinstance(band, list) and len(band) == 2
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in band)):
+        raise ParameterError(f"{where}: band = {band!r} is not allowed: it must be [lo, hi], two numbers")
+    for part in ("spec", "reference"):
+        params = table.get(part, {}).get("params", {})
+        if not isinstance(params, dict):
+            raise ParameterError(f"{where}: [{part}.params] = {params!r} is not allowed: it must be a table")
+
+
 def _spec(table: dict, where: str) -> EnsembleSpec:
     unknown = set(table) - SPEC_KEYS
     if unknown:
         raise ParameterError(f"{where}: unknown key(s) {sorted(unknown)}; allowed: {', '.join(sorted(SPEC_KEYS))}")
     try:
         return EnsembleSpec(**{**table, "params": Params(**table.get("params", {}))})
-    except TypeError as exc:
-        raise ParameterError(f"{where}: {exc}") from None
+    except TypeError:
+        raise ParameterError(f"{where}: a value of the wrong type (seed, first, realizations: integers; algorithm, "
+                             "mode, boundary: texts; window: true or false; params: a table)") from None
 
 
 def checks_from_toml(path) -> list[Check]:
@@ -116,14 +150,21 @@ def checks_from_toml(path) -> list[Check]:
     unknown = set(data) - {"check", "providers"}
     if unknown:
         raise ParameterError(f"checks file {path}: unknown top-level key(s) {sorted(unknown)}; allowed: check, providers")
-    providers = [load_object(t) for t in data.get("providers", [])]
-    for number, table in enumerate(data.get("check", []), start=1):
+    names, tables = data.get("providers", []), data.get("check", [])
+    if not isinstance(names, list) or not all(isinstance(t, str) for t in names):
+        raise ParameterError(f"checks file {path}: providers = {names!r} is not allowed: it must be a list of texts "
+                             "package.module:function")
+    if not isinstance(tables, list) or not all(isinstance(t, dict) for t in tables):
+        raise ParameterError(f"checks file {path}: 'check' must be an array of tables [[check]], got {tables!r}")
+    providers = [load_object(t) for t in names]
+    for number, table in enumerate(tables, start=1):
         where = f"checks file {path}, check {number}"
         unknown = set(table) - CHECK_KEYS
         missing = {"name", "prediction", "band"} - set(table)
         if unknown or missing:
             raise ParameterError(f"{where}: " + (f"unknown key(s) {sorted(unknown)}" if unknown else
                                                   f"missing key(s) {sorted(missing)}"))
+        _check_types(table, where)
         table = dict(table)
         spec = _spec(table.pop("spec", {}), where + " [spec]")
         reference = table.pop("reference", None)
@@ -148,13 +189,18 @@ def _provided(provider, ctx: Context) -> list:
     name = getattr(provider, "__qualname__", repr(provider))
     try:
         items = provider(ctx) if inspect.signature(provider).parameters else provider()
+        if isinstance(items, (Check, CheckResult)):
+            return [items]
+        if isinstance(items, (str, bytes, dict)) or not isinstance(items, Iterable):
+            raise ParameterError(f"check provider {name!r} returned {items!r}, not a Check, a CheckResult or a "
+                                 "list of them")
+        items = list(items)
     except ParameterError:
         raise
+    except SystemExit as exc:  # sys.exit in a provider must not end mdroll as a success
+        raise PredictionError(f"check provider {name!r} called sys.exit({exc.code!r})") from None
     except Exception as exc:  # a user's provider may fail in any way: bad input, named
         raise PredictionError(f"check provider {name!r} raised {type(exc).__name__}: {exc}") from None
-    if isinstance(items, (Check, CheckResult)):
-        return [items]
-    items = list(items)
     bad = [i for i in items if not isinstance(i, (Check, CheckResult))]
     if bad:
         raise ParameterError(f"check provider {name!r} returned {bad[0]!r}, "
