@@ -2,6 +2,7 @@
 survives a worker killed with SIGKILL, resumes from its checkpoint and ends a lost scheduler in
 one line: local clusters of worker processes on the CPU, as on CI."""
 
+import contextlib
 import os
 import signal
 import socket
@@ -43,7 +44,10 @@ def cluster():
     client = Client(cluster)
     yield cluster, client
     client.close()
-    cluster.close()
+    # a worker the killed-worker test ended on purpose can be missing from the cluster's spec,
+    # which LocalCluster.close reports as a KeyError of its address
+    with contextlib.suppress(KeyError):
+        cluster.close()
 
 
 @pytest.fixture(scope="module")

@@ -55,18 +55,17 @@ class FitResult:
 
     @property
     def accepted(self) -> bool:
-        """The optimizer converged and the gate (:mod:`.acceptance`) accepts the fit."""
-        return self.success and (self.acceptance is None or self.acceptance["accepted"])
+        """The gate (:mod:`.acceptance`) accepts the fit. An optimizer that stops short of its
+        own convergence test (L-BFGS-B's ABNORMAL line search at the precision limit) is a
+        warning, not a rejection: the gate judges the fit by its residuals either way."""
+        return self.acceptance is None or self.acceptance["accepted"]
 
     @property
     def rejection(self) -> str:
         """Why the fit is not accepted, in one line (empty when it is)."""
         if self.accepted:
             return ""
-        reasons = list((self.acceptance or {}).get("reasons", []))
-        if not self.success:
-            reasons.insert(0, f"the optimizer did not converge ({self.message})")
-        return "; ".join(reasons)
+        return "; ".join((self.acceptance or {}).get("reasons", []))
 
     def to_dict(self) -> dict:
         """A JSON-ready dict (arrays as lists; the band's data and model included)."""

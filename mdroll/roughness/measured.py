@@ -7,6 +7,8 @@ A measured profile is a line scan along the rail (kind "profile"); by the rail a
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -131,6 +133,9 @@ def welch_psd(profile: Profile, segment_length: float | None = None, confidence:
     if not 0.0 < confidence < 1.0:
         raise ParameterError(f"confidence = {confidence!r} is not allowed: it must lie in (0, 1)")
     n = profile.h.size
+    if segment_length is not None and not (isinstance(segment_length, (int, float)) and math.isfinite(segment_length)
+                                           and segment_length > 0):
+        raise ParameterError(f"segment_length = {segment_length!r} m is not allowed: it must be positive and finite")
     nperseg = n // 8 if segment_length is None else int(round(segment_length / profile.dx))
     if not 16 <= nperseg <= n:
         raise ParameterError(f"segment_length = {segment_length!r} m is not allowed: it must hold 16 .. {n} samples "
