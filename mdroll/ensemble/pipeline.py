@@ -46,8 +46,9 @@ H_BOUND_SIGMAS = 6.0
 #: With a checkpoint, batches are sized so that one takes about this long (s): a kill loses at
 #: most about this much work.
 CHECKPOINT_SECONDS = 30.0
-#: Realizations a CPU thread runs through the stages at once (:class:`CpuWorkers`): few, so
-#: that its arrays stay small and are reused (docs/performance.md, CPU).
+#: Realizations a CPU thread runs through the stages at once
+#: (:class:`~mdroll.ensemble.workers.CpuWorkers`): few, so that its arrays stay small and are
+#: reused (docs/performance.md, CPU).
 CPU_CHUNK = 2
 
 
@@ -81,9 +82,8 @@ def run_ensemble(
 ) -> EnsembleResult:
     """Run an ensemble and return its averaged force and acceleration spectra.
 
-    Realizations (:data:`~mdroll.ensemble.realizations.DEFAULT_REALIZATIONS` when None; an int R for 0..R-1, or a
-    sequence of indices)
-    are processed in batches (sized from free device or host memory, capped by
+    Realizations (:data:`~mdroll.ensemble.realizations.DEFAULT_REALIZATIONS` when None; an int R
+    for 0..R-1, or a sequence of indices) are processed in batches (sized from free device or host memory, capped by
     ``memory_limit`` bytes, unless ``batch`` is given): rough lines (section 3) -> force at d0
     by ``algorithm`` and the wheel on the linearized contact spring (``mode="decoupled"``,
     section 5.1), or the coupled dynamics of eq 13 (``mode="coupled"``; refused for an
@@ -113,8 +113,8 @@ def run_ensemble(
     parts of :data:`CPU_CHUNK` through lines, force and spectra, each part on the next free one
     of this many Python threads (Warp's CPU launches and FFTW release the GIL), into memory each
     thread keeps from part to part; the parts' moments are merged in their order, so the spectra
-    do not depend on the number of threads at all (:class:`CpuWorkers`). On CUDA the device runs
-    the batch as a whole.
+    do not depend on the number of threads at all (:class:`~mdroll.ensemble.workers.CpuWorkers`).
+    On CUDA the device runs the batch as a whole.
 
     Parameters
     ----------
@@ -124,7 +124,8 @@ def run_ensemble(
         Master seed in [0, 2^64); realization j's line depends on (seed, j) alone.
     realizations : None, int or sequence of int
         The run's realizations: R for indices 0..R-1, or the indices themselves; None:
-        :data:`~mdroll.ensemble.realizations.DEFAULT_REALIZATIONS`. The result's ``n_real`` is their count.
+        :data:`~mdroll.ensemble.realizations.DEFAULT_REALIZATIONS`. The result's ``n_real`` is
+        their count.
     algorithm : str or None
         Force algorithm (:data:`mdroll.ALGORITHMS`); None: the mode's default.
     mode : {"decoupled", "coupled"}

@@ -14,11 +14,11 @@ from ..devices import is_cuda, warp
 
 class CpuWorkers:
     """The CPU path's threads: each part of a batch (:data:`~mdroll.ensemble.pipeline.CPU_CHUNK`
-    realizations) is run through lines, force and spectra by the next free one of ``threads`` Python threads (Warp's
-    CPU launches and FFTW release the GIL; each thread's FFTs take one FFTW thread), into
-    arrays the thread keeps from part to part (:mod:`mdroll.buffers`); the parts' moments are merged
-    in their order, so the result does not depend on the number of threads or on which thread
-    ran which part.
+    realizations) is run through lines, force and spectra by the next free one of ``threads``
+    Python threads (Warp's CPU launches and FFTW release the GIL; each thread's FFTs take one
+    FFTW thread), into arrays the thread keeps from part to part (:mod:`mdroll.buffers`); the
+    parts' moments are merged in their order, so the result does not depend on the number of
+    threads or on which thread ran which part.
 
     ``serial`` is a lock that one thread holds at a time: Warp 1.19 keeps the shared memory of a
     CPU tile kernel (the coupled dynamics; the sweep's stream, which only CUDA runs by default)
