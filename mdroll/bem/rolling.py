@@ -19,8 +19,8 @@ import numpy as np
 
 from ..errors import ParameterError
 from .halfspace import HalfSpace
-from .solver import (MAX_ITERATIONS, TOLERANCE, array_module, check_problem, check_stopping, constrained_cg,
-                     indenter_gap, initial_pressure, summarize, to_host)
+from .solver import (MAX_ITERATIONS, TOLERANCE, array_module, check_problem, check_stopping, indenter_gap,
+                     initial_pressure, iteration, summarize, to_host)
 
 
 @dataclass
@@ -95,6 +95,7 @@ def roll(surface, dx, radius, *, E_star, steps, approach=None, load=None, window
         op = HalfSpace(n, dx, E_star, xp=xp)
         gap = indenter_gap(n, dx, radius, radius_y, xp)
         full = xp.asarray(surface, dtype=xp.float64).reshape(-1, length, width)
+        solver = iteration(op, full.shape[0], load_control)
         pressure = None
         for s in range(steps):
             separation = gap - full[:, start + s:start + s + n, columns]
@@ -105,8 +106,7 @@ def roll(surface, dx, radius, *, E_star, steps, approach=None, load=None, window
                 pressure = shift_back(xp, pressure)
                 lost = pressure.sum(axis=(-2, -1)) == 0
                 pressure = xp.where(lost[:, None, None], fresh, pressure)
-            pressure, d, iterations, residual = constrained_cg(op, separation, control, load_control, pressure,
-                                                               tol, max_iter)
+            pressure, d, iterations, residual = solver(separation, control, pressure, tol, max_iter)
             rows.append(summarize(pressure, d, iterations, residual, tol, dx))
     fields = {name: np.stack([getattr(r, name) for r in rows], axis=-1)
               for name in ("force", "approach", "area", "iterations", "residual", "converged")}

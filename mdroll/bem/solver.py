@@ -205,6 +205,19 @@ def constrained_cg(op, separation, control, load_control, pressure, tol, max_ite
     return pressure, approach, iterations, residual
 
 
+def iteration(op, batch, load_control):
+    """The constrained conjugate gradients for ``op``'s arrays, as a call ``(separation, control,
+    pressure, tol, max_iter) -> (p, d, iterations, residual)``: :func:`constrained_cg` on NumPy; on
+    CuPy the same iteration fused into a few kernels replayed as a CUDA graph
+    (:class:`mdroll.bem.fused.FusedCG`), whose buffers serve every later call of the batch."""
+    if op.xp is np:
+        return lambda separation, control, pressure, tol, max_iter: constrained_cg(
+            op, separation, control, load_control, pressure, tol, max_iter)
+    from .fused import FusedCG
+
+    return FusedCG(op, batch, load_control)
+
+
 def solve(heights, dx, radius, *, E_star, approach=None, load=None, radius_y=None, device="cpu",
           tol=TOLERANCE, max_iter=MAX_ITERATIONS, initial=None):
     """Normal contact of a rigid sphere (or ellipsoid) on a rough elastic half-space, free boundary.
@@ -251,7 +264,8 @@ def solve(heights, dx, radius, *, E_star, approach=None, load=None, radius_y=Non
             start = initial_pressure(op, separation, control, load_control, math.sqrt(radius * radius_y))
         else:
             start = xp.asarray(initial, dtype=xp.float64).reshape(-1, n, n)
-        p, d, iterations, residual = constrained_cg(op, separation, control, load_control, start, tol, max_iter)
+        p, d, iterations, residual = iteration(op, separation.shape[0], load_control)(
+            separation, control, start, tol, max_iter)
         result = summarize(p, d, iterations, residual, tol, dx)
     pressure = result.pressure if type(heights).__module__.startswith("cupy") else to_host(result.pressure)
     return unbatch(result, pressure, batched)
