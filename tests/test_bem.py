@@ -142,6 +142,25 @@ def test_cuda_solver_equals_numpy(cuda_devices):
             assert np.abs(fused.iterations - host.iterations).max() <= 1 and fused.converged.all()
 
 
+def test_cuda_rolling_equals_numpy(cuda_devices):
+    # each member moves on when it converged, on the device: the same solves as NumPy's position by
+    # position, through a valley where the second member loses contact and starts afresh
+    if not cuda_devices:
+        pytest.skip("no CUDA device with CuPy")
+    n, dx, steps = 24, 2e-4, 12
+    x = np.arange(n + steps - 1) * dx
+    valley = -30e-6 * np.exp(-(((x - x[n // 2 + 5]) / (9 * dx)) ** 8))
+    surfaces = np.stack([_rough(n + steps - 1, dx)[:, :n] * 0.3, extruded(valley, n)])
+    host = roll(surfaces, dx, R, E_star=E_STAR, approach=3e-6, steps=steps)
+    assert (host.force[1, 3:9] == 0).all() and (host.force[1, 9:] > 0).all()
+    for dev in cuda_devices:
+        fused = roll(surfaces, dx, R, E_star=E_STAR, approach=3e-6, steps=steps, device=dev)
+        np.testing.assert_allclose(fused.force, host.force, rtol=1e-10, atol=1e-12 * host.force.max())
+        np.testing.assert_array_equal(fused.area, host.area)
+        assert np.abs(fused.iterations - host.iterations).max() <= 1 and fused.converged.all()
+        np.testing.assert_allclose(fused.pressure, host.pressure, rtol=0, atol=1e-9 * host.pressure.max())
+
+
 def test_tolerance_bounds_the_force_error(device):
     # the rolling runs' tolerance: the force within tol / 2 of a tight solve (docs/bem.md, Speed)
     n, dx = 48, 1.5e-4

@@ -21,6 +21,7 @@ Displacement control fixes d; load control fixes F and finds d as the mean of
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 from dataclasses import dataclass
 
@@ -218,6 +219,16 @@ def iteration(op, batch, load_control):
     return FusedCG(op, batch, load_control)
 
 
+@functools.lru_cache(maxsize=4)
+def workspace(device, n, dx, E_star, batch, load_control):
+    """The half-space operator and the solver (:func:`iteration`) of one problem size, kept for the
+    next :func:`solve` of that size: the Love coefficients' spectrum and, on CUDA, the solver's
+    buffers, cuFFT plans and CUDA graph are built once (the last four sizes stay allocated)."""
+    xp, _ = array_module(device)
+    op = HalfSpace(n, dx, E_star, xp=xp)
+    return op, iteration(op, batch, load_control)
+
+
 def solve(heights, dx, radius, *, E_star, approach=None, load=None, radius_y=None, device="cpu",
           tol=TOLERANCE, max_iter=MAX_ITERATIONS, initial=None):
     """Normal contact of a rigid sphere (or ellipsoid) on a rough elastic half-space, free boundary.
@@ -257,15 +268,14 @@ def solve(heights, dx, radius, *, E_star, approach=None, load=None, radius_y=Non
     tol, max_iter = check_stopping(tol, max_iter)
     xp, context = array_module(device)
     with context:
-        op = HalfSpace(n, dx, E_star, xp=xp)
         surface = xp.asarray(heights, dtype=xp.float64).reshape(-1, n, n)
+        op, solver = workspace(device, n, dx, E_star, surface.shape[0], load_control)
         separation = indenter_gap(n, dx, radius, radius_y, xp) - surface
         if initial is None:
             start = initial_pressure(op, separation, control, load_control, math.sqrt(radius * radius_y))
         else:
             start = xp.asarray(initial, dtype=xp.float64).reshape(-1, n, n)
-        p, d, iterations, residual = iteration(op, separation.shape[0], load_control)(
-            separation, control, start, tol, max_iter)
+        p, d, iterations, residual = solver(separation, control, start, tol, max_iter)
         result = summarize(p, d, iterations, residual, tol, dx)
     pressure = result.pressure if type(heights).__module__.startswith("cupy") else to_host(result.pressure)
     return unbatch(result, pressure, batched)
