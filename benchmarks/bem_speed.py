@@ -9,6 +9,7 @@ ensemble of B realizations x P positions; JSON with the environment and the comm
 The problem: a wheel (R 0.5 m) on steel (E* from E 210 GPa, nu 0.3) at its Hertz approach for 40 kN
 (displacement control, the decoupled mode; --control load for load control), the grid 1.25 x the
 Hertz contact diameter, a self-affine isotropic surface (H 0.7, q_min 2 pi / 5 mm, RMS 0.5 um).
+With --reference the single solve is also timed in ContactMechanics (if installed) on the same problem.
 The single solves use the default tolerance, the rolling run --tol. docs/bem.md reads these numbers
 against the floor.
 """
@@ -75,6 +76,8 @@ def single_solves(args):
     out = {"n": args.n, "dx": dx}
     if args.device == "cpu" or args.cpu_reference:
         out["numpy"] = record_of(*median_seconds(lambda: solve(surfaces[0], dx, RADIUS, **kw), 1))
+    if args.reference:
+        out["reference"] = contactmechanics_solve(surfaces[0], dx, d0, solve(surfaces[0], dx, RADIUS, **kw).force)
     if args.device == "cpu":
         return out
     import cupy
@@ -96,6 +99,24 @@ def single_solves(args):
 
         out["unfused"] = record_of(*median_seconds(unfused, 1))
     return out
+
+
+def contactmechanics_solve(heights, dx, d0, force):
+    """ContactMechanics' time on the same problem under displacement control, or why not."""
+    try:
+        from ContactMechanics import FreeFFTElasticHalfSpace
+        from ContactMechanics.Optimization import constrained_conjugate_gradients
+    except ImportError:
+        return {"skipped": "ContactMechanics not installed (pip install -e '.[bem]')"}
+    n = heights.shape[0]
+    substrate = FreeFFTElasticHalfSpace((n, n), E_STAR, (n * dx, n * dx))
+    topography = heights - indenter_gap(n, dx, RADIUS, RADIUS)
+    start = time.perf_counter()
+    result = constrained_conjugate_gradients(substrate, topography, offset=d0, pentol=1e-14, forcetol=1e-30,
+                                             thermotol=1e-10, maxiter=10000)
+    seconds = time.perf_counter() - start
+    theirs = float(result.jac[:n, :n].sum())
+    return {"seconds": seconds, "iterations": int(result.nit), "force": theirs, "force_ratio": force / theirs}
 
 
 def floor(args):
@@ -137,6 +158,8 @@ def floor(args):
 
 
 def rolling_ensemble(args):
+    """The rolling run; its time per iteration and surface counted over the slowest member at each
+    position (what a lockstep batch pays) and over every member's own iterations."""
     dx, d0, surfaces = problem(args.n, args.batch, args.n + args.positions - 1)
 
     def call(steps):
@@ -151,6 +174,7 @@ def rolling_ensemble(args):
     return {"n": args.n, "batch": args.batch, "positions": args.positions, "tol": args.tol, "seconds": seconds,
             "seconds_per_position": seconds / args.positions,
             "seconds_per_iteration_and_surface": seconds / float(iterations.max(axis=0).sum()) / args.batch,
+            "seconds_per_member_iteration": seconds / float(iterations.sum()),
             "iterations_mean": float(iterations.mean()), "iterations_max": int(iterations.max()),
             "iterations_slowest_member_mean": float(iterations.max(axis=0).mean()),
             "iterations_first_position": float(iterations[:, 0].mean()),
@@ -174,6 +198,7 @@ def main(argv=None):
     parser.add_argument("--tol", type=float, default=1e-8, help="tolerance of the rolling run")
     parser.add_argument("--control", choices=("approach", "load"), default="approach")
     parser.add_argument("--cpu-reference", action="store_true", help="also time the NumPy solve on this host")
+    parser.add_argument("--reference", action="store_true", help="also time ContactMechanics on the single solve")
     parser.add_argument("--commit", default=None, help="commit of the code measured (default: git rev-parse HEAD)")
     parser.add_argument("--out", required=True)
     args = parser.parse_args(argv)
