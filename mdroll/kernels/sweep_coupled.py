@@ -43,14 +43,21 @@ def prefetch_ahead(h: wp.array2d(dtype=wp.float64), prefix: wp.array2d(dtype=wp.
 
 
 @wp.func
-def band_term(h: wp.array2d(dtype=wp.float64), r: int, l: int, end: int, c: int, d: wp.float64,
-              curvature: wp.float64) -> wp.float64:
-    """``max(h_l + d - curvature (l - c)^2, 0)`` (m; eq 10) for spring l of row r if ``l < end``,
-    else 0: adding it leaves a sum of such terms unchanged to the bit."""
-    if l < end:
-        m = wp.float64(l - c)
-        return wp.max(h[r, l] + d - curvature * m * m, wp.float64(0.0))
-    return wp.float64(0.0)
+def band_heights(h: wp.array2d(dtype=wp.float64), r: int, right: int, left: int, lanes: int, n: int) -> wp.vec4d:
+    """The heights of springs ``right, right + lanes, left, left + lanes`` of row r, each index
+    clamped into the row: loaded unconditionally, so that the four loads are in flight together
+    (:func:`band_term` drops those past a band's end)."""
+    last = n - 1
+    return wp.vec4d(h[r, wp.clamp(right, 0, last)], h[r, wp.clamp(right + lanes, 0, last)],
+                    h[r, wp.clamp(left, 0, last)], h[r, wp.clamp(left + lanes, 0, last)])
+
+
+@wp.func
+def band_term(height: wp.float64, l: int, end: int, c: int, d: wp.float64, curvature: wp.float64) -> wp.float64:
+    """``max(h_l + d - curvature (l - c)^2, 0)`` (m; eq 10) for spring l of height ``height`` if
+    ``l < end``, else 0: adding it leaves a sum of such terms unchanged to the bit."""
+    m = wp.float64(l - c)
+    return wp.where(l < end, wp.max(height + d - curvature * m * m, wp.float64(0.0)), wp.float64(0.0))
 
 
 @wp.func
@@ -63,27 +70,27 @@ def banded_force(h: wp.array2d(dtype=wp.float64), prefix: wp.array2d(dtype=wp.fl
     adjacent lanes on adjacent springs, summed spring by spring (eq 10), each band in its own
     sum in the order of :func:`~mdroll.kernels.common.spring_sum`.
 
-    A step's loads all wait on d: every lane computes the core's closed form (its two prefix
-    sums broadcast) and walks both bands at once, two springs of each a round, so that six
-    loads are in flight together instead of one after another."""
+    A step's loads all wait on d, so they go out together: the first round's four heights
+    (two springs of each band, :func:`band_heights`), then the core's two prefix sums (every
+    lane computes the closed form; lane 0 keeps it), and each round's heights load before the
+    previous round's terms are added."""
     curvature = contact.curvature
-    core_sum = full_contact_sum(prefix, r, wp.max(c - core, 0), wp.min(c + core + 1, n), c, d, curvature)
     # right band c+core+1 .. c+outer, left band c-outer .. c-max(core, 0)-1 (core -1: the right one holds c)
     right = wp.max(c + core + 1, 0) + lane
     right_end = wp.min(c + outer + 1, n)
     left = wp.max(c - outer, 0) + lane
     left_end = wp.min(c - wp.max(core, 0), n)
+    heights = band_heights(h, r, right, left, lanes, n)
+    core_sum = full_contact_sum(prefix, r, wp.max(c - core, 0), wp.min(c + core + 1, n), c, d, curvature)
     right_sum = wp.float64(0.0)
     left_sum = wp.float64(0.0)
     while right < right_end or left < left_end:
-        a0 = band_term(h, r, right, right_end, c, d, curvature)
-        b0 = band_term(h, r, left, left_end, c, d, curvature)
-        a1 = band_term(h, r, right + lanes, right_end, c, d, curvature)
-        b1 = band_term(h, r, left + lanes, left_end, c, d, curvature)
-        right_sum += a0
-        right_sum += a1
-        left_sum += b0
-        left_sum += b1
+        now = heights
+        heights = band_heights(h, r, right + 2 * lanes, left + 2 * lanes, lanes, n)
+        right_sum += band_term(now[0], right, right_end, c, d, curvature)
+        right_sum += band_term(now[1], right + lanes, right_end, c, d, curvature)
+        left_sum += band_term(now[2], left, left_end, c, d, curvature)
+        left_sum += band_term(now[3], left + lanes, left_end, c, d, curvature)
         right += 2 * lanes
         left += 2 * lanes
     total = wp.float64(0.0)
