@@ -26,9 +26,9 @@ from .intrinsics import warp_sum_float, warp_sum_float_pair
 #: sum is a butterfly of warp shuffles. Warp runs tiles with one thread on the CPU: one lane there.
 COUPLED_LANES = 32
 
-#: Realizations (warps) a block on CUDA: several, so that a block's launch and a multiprocessor's
-#: slots carry more than one latency-bound chain. Any count of realizations runs: the warps past
-#: the last realization of the last block return at once.
+#: Realizations (warps) a block on CUDA (the choice: docs/performance.md, "Coupled mode"). Any
+#: count of realizations runs: the warps past the last realization of the last block return at
+#: once.
 COUPLED_WARPS = 4
 
 #: The time steps of eq 13: the semi-implicit (symplectic) Euler step, and forward Euler, the
