@@ -12,7 +12,7 @@ from pathlib import Path
 
 from ..devices import resolve_device
 from ..errors import ParameterError, UsageError
-from ..experiments import write_json
+from ..experiments import read_record, write_json
 from ..files import atomic_write
 from .common import (check_directory_path, cluster_runner, output_dir, output_options, progress_printer, reading,
                      size_options)
@@ -93,11 +93,10 @@ def execute(args) -> int:
 
 def _report(args) -> int:
     """``--report JSON ...``: the Markdown tables of round-trip records."""
-    from ..inverse.records import read_record
-    from ..inverse.roundtrip_report import merge_records, report
+    from ..inverse.roundtrip_report import ROUNDTRIP_RECORD, merge_records, report
 
     with _option("--report"):
-        records = [read_record(name) for name in args.report]
+        records = [read_record(name, ROUNDTRIP_RECORD) for name in args.report]
     print(report(merge_records(records)))
     return 0
 
