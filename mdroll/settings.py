@@ -53,12 +53,14 @@ class Presettable:
         return dataclasses.replace(self, **values)
 
     @classmethod
-    def from_settings(cls, settings: Mapping[str, str] | Iterable[str]):
+    def from_settings(cls, settings: Mapping[str, str] | Iterable[str | tuple[str, str]]):
         """An instance from ``<PREFIX>=PRESET`` and ``<PREFIX>.KEY=VALUE`` settings (text, as on a
-        command line), given as a mapping ``{"track.pad_loss": "0.3"}`` or as ``"KEY=VALUE"``
-        strings. The preset applies first (default: the class defaults), then the keys in order."""
+        command line), given as a mapping ``{"track.pad_loss": "0.3"}``, as ``"KEY=VALUE"`` strings
+        or as (KEY, VALUE) pairs. The preset applies first (default: the class defaults), then the
+        keys in order."""
         form = f"{cls.PREFIX}.KEY=VALUE or {cls.PREFIX}=PRESET"
-        pairs = list(settings.items()) if isinstance(settings, Mapping) else [split_setting(s, form) for s in settings]
+        pairs = list(settings.items()) if isinstance(settings, Mapping) else [
+            split_setting(s, form) if isinstance(s, str) else tuple(s) for s in settings]
         made = cls()
         for key, value in pairs:
             if key == cls.PREFIX:
