@@ -14,9 +14,8 @@ from ..files import atomic_write
 from ..errors import ParameterError
 from ..params import Params
 from .psd import RunningMoments, wavenumbers
-from ..track.fit import rail_modal_form
 from .resolution import estimator_name, resolution
-from .vibration import VIBRATION, structures_of, vibration_spectra
+from .vibration import VIBRATION, rail_form, structures_of, vibration_spectra
 
 #: The stages of a run whose times a result reports, in the order a batch passes them.
 STAGES = ("generate", "build", "force", "response", "spectra")
@@ -259,7 +258,7 @@ def _structures_summary(result: EnsembleResult) -> dict:
     if not (result.track or result.wheel):
         return {}
     track, _ = structures_of(result)
-    fit = rail_modal_form(track).error_db if track.support != "rigid" else 0.0
+    fit = rail_form(track).error_db if track.support != "rigid" else 0.0
     return {"track": result.track, "wheel": result.wheel, "vibration": {
         "quantities": [name for name in VIBRATION if name in result.vibration()],
         "definition": "velocity at the contact, S_v = omega^2 |alpha|^2 S_F per bin (mdroll.ensemble.vibration): "

@@ -40,6 +40,14 @@ from ..wheel import Wheel
 
 #: The vibration spectra a run on a track writes beside force and acceleration (velocity PSDs).
 VIBRATION = ("wheel_velocity", "rail_velocity")
+#: Where the coupled run stands the wheel (:func:`mdroll.ensemble.coupled.contact_compliance`).
+WHEEL_POSITION = "sleeper"
+
+
+def rail_form(track: Track):
+    """The rail's modal state space the coupled run steps (:func:`mdroll.track.fit.rail_modal_form`
+    at :data:`WHEEL_POSITION`, called as the run calls it: one fit, cached)."""
+    return rail_modal_form(track, WHEEL_POSITION)
 
 
 def structures_record(track: Track | None, wheel: Wheel | None) -> tuple[dict, dict]:
@@ -63,8 +71,7 @@ def transfers(track: Track, wheel: Wheel, params: Params, f) -> dict:
     """``{"wheel": alpha_W, "rail": alpha_R}`` (m/N, complex) at ``f`` (Hz) as the run steps them
     (module docstring); the rigid track's rail transfer is zero."""
     f = np.asarray(f, dtype=np.float64)
-    rail = rail_modal_form(track).discrete_response(f, params.dt) if track.support != "rigid" else np.zeros(f.shape,
-                                                                                                         complex)
+    rail = rail_form(track).discrete_response(f, params.dt) if track.support != "rigid" else np.zeros(f.shape, complex)
     if wheel.kind == "rigid":
         omega2 = (TWO_PI * f) ** 2
         wheel_alpha = np.divide(-1.0, params.m * omega2, out=np.zeros(f.shape), where=omega2 > 0) + 0j
