@@ -24,16 +24,16 @@ def main() -> None:
     parser.add_argument("--out", default="coupled_thesis.json")
     args = parser.parse_args()
     device = resolve_device(args.device)
-    p = Params(L=5.24288, n_real=300)
-    record = {"environment": environment(device), "params": p.as_dict(), "runs": {}}
+    p, count = Params(L=5.24288), 300
+    record = {"environment": environment(device), "params": p.as_dict(), "realizations": count, "runs": {}}
     spectra = {}
     for entry in REGISTRY.values():
         if entry.coupled is None:
             continue
-        run_ensemble(Params(L=0.05, n_real=4), algorithm=entry.name, mode="coupled", device=device, progress=False)
+        run_ensemble(Params(L=0.05), realizations=4, algorithm=entry.name, mode="coupled", device=device, progress=False)
         synchronize(device)
         start = time.perf_counter()
-        result = run_ensemble(p, algorithm=entry.name, mode="coupled", device=device, progress=False)
+        result = run_ensemble(p, realizations=count, algorithm=entry.name, mode="coupled", device=device, progress=False)
         wall = time.perf_counter() - start
         spectra[entry.name] = result.force_psd
         record["runs"][entry.name] = {"wall_s": wall, "timings": result.timings}
