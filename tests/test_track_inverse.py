@@ -53,3 +53,48 @@ def test_simulated_correction_is_refused_on_a_track():
                         known_track=SOFT)
     with pytest.raises(ParameterError, match="correction = 'simulated' is not allowed on a known track"):
         fit(spectrum, known={"m": P.m, "R": P.R}, correction="simulated")
+
+
+def test_invert_a_table_on_a_known_track(cli, one_line_error, tmp_path):
+    """A noise-free table of the model on a continuously supported soft-pad track: the fit with
+    the track given recovers the parameters; a setting other than the track's is one line."""
+    track = KnownTrack(Track.preset("ballasted-soft-pad").with_values(support="continuous"), Wheel.preset("rigid"))
+    omega = 2 * np.pi * np.arange(300.0, 20000.0, 10.0)
+    psd = expected_psd(omega, PARAMS, Setting("accel", P.v0, known_track=track))
+    table = tmp_path / "accel.csv"
+    np.savetxt(table, np.column_stack([omega, psd]), delimiter=",")
+    known = [f"--known={k}={v}" for k, v in (("v0", P.v0), ("m", P.m), ("R", P.R), ("E", P.E), ("nu", P.nu))]
+    common = ["invert", str(table), "--frequency-unit", "rad/s", "--sided", "two", "--density", "rad/s",
+              "--passes", "100", *known, "--free", "H,q_min,a,h0", "--band", "1200:19990Hz", "--no-profile",
+              "--discrepancy", "0"]
+    proc = cli(*common, "--set", "track=ballasted-soft-pad", "--set", "track.support=continuous",
+               "--out", str(tmp_path / "inv"))
+    assert proc.returncode == 0, proc.stderr
+    import json
+
+    record = json.loads((tmp_path / "inv" / "inverse.json").read_text())
+    assert record["known_track"]["track"]["support"] == "continuous"
+    for name, rel in (("H", 0.01), ("q_min", 1e-3), ("a", 1e-3), ("h0", 0.01)):
+        assert record["estimates"][name] == pytest.approx(PARAMS[name], rel=rel), name
+    one_line_error(cli(*common, "--set", "L=1", "--out", str(tmp_path / "bad")), "--set L=1")
+
+
+def test_round_trip_on_a_track_recovers_what_ignoring_it_biases():
+    from mdroll.inverse.track_roundtrip import known_track_round_trip
+
+    record = known_track_round_trip("test", seed=0, device="cpu")
+    known, ignored = record["rows"]
+    assert (known["track"], ignored["track"]) == ("known", "ignored")
+    assert known["covered"]["H"] and abs(known["error"]["H"]) < 0.02
+    assert abs(ignored["error"]["H"]) > 2 * abs(known["error"]["H"])
+    assert known["gof"]["deviance_per_dof"] < ignored["gof"]["deviance_per_dof"]
+
+
+def test_a_coupled_run_on_the_rigid_rail_is_still_refused(tmp_path):
+    from mdroll import run_ensemble
+    from mdroll.inverse import read_spectrum
+
+    path = run_ensemble(Params(L=0.05), realizations=2, mode="coupled", device="cpu", progress=False).save(
+        tmp_path / "spectra.npz")
+    with pytest.raises(ParameterError, match="a coupled run on the rigid rail"):
+        read_spectrum(path)

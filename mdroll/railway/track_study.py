@@ -221,7 +221,7 @@ def figures(record: dict) -> list:
                 ax.set_title(f"{name}: {key.replace('_', ' ')}", fontsize=9)
                 ax.set_ylabel("time domain - linear chain (dB)")
                 ax.grid(True, which="both", alpha=0.3)
-                if ax.lines:
+                if ax.get_legend_handles_labels()[0]:
                     ax.legend(fontsize=6)
             axes[1][column].set_xlabel("1/3-octave band (Hz)")
 
