@@ -47,6 +47,8 @@ Z_SIGMA = 3.0
 DIP_BINS = 2
 #: Bins a band needs to be compared.
 MIN_BINS = 3
+#: Frequency (Hz) up to which the chain is evaluated: the top band's upper edge and the dips' bins.
+TOP_HZ = 1.2 * BAND_HZ[1]
 
 
 @dataclass(frozen=True)
@@ -76,14 +78,20 @@ def iso_spectrum(offset_db: float):
 
 def chain(params: Params, track: Track, spectrum, q) -> dict:
     """The linear chain's spectra at the record's wavenumbers ``q`` (two-sided per rad/m, like
-    the run's; 0 at q = 0), the roughness the spectrum's MDR PSD cut at q_max, the rigid wheel
-    of mass m."""
-    q = np.asarray(q, dtype=np.float64)[1:]
-    f = q * params.v0 / TWO_PI
-    c_r = np.where(q <= params.q_max, spectrum.mdr_psd(q), 0.0)
+    the run's; 0 at q = 0 and above :data:`TOP_HZ`: the discrete track's receptance costs a
+    Brillouin-zone sum per frequency), the roughness the spectrum's MDR PSD cut at q_max, the
+    rigid wheel of mass m."""
+    q = np.asarray(q, dtype=np.float64)
+    inside = (q > 0) & (q * params.v0 / TWO_PI <= TOP_HZ)
+    f = q[inside] * params.v0 / TWO_PI
+    c_r = np.where(q[inside] <= params.q_max, spectrum.mdr_psd(q[inside]), 0.0)
     spectra = linear_chain(f, c_r, -1.0 / (params.m * (TWO_PI * f) ** 2), receptance(track, f), params.k_contact,
                            params.a, params.v0)
-    return {k: np.concatenate([[0.0], v]) for k, v in spectra.items()}
+    out = {}
+    for key, values in spectra.items():
+        out[key] = np.zeros(q.shape, dtype=values.dtype)
+        out[key][inside] = values
+    return out
 
 
 def band_difference(q, psd, stderr, reference, params: Params, quantity: str) -> dict:
@@ -178,16 +186,18 @@ def _vibration(run) -> dict:
 
 def _same_realizations(run, blocked, track: Track, p: Params) -> dict:
     """The chain on the blocked force of the same realizations: force and velocities, per band."""
-    q = run.q[1:]
+    keep = (run.q > 0) & (run.q * p.v0 / TWO_PI <= TOP_HZ)
+    q = run.q[keep]
     f = q * p.v0 / TWO_PI
     alpha_w, alpha_r = -1.0 / (p.m * (TWO_PI * f) ** 2), receptance(track, f)
     transfer = 1.0 / np.abs(p.k_contact * (alpha_w + alpha_r + 1.0 / p.k_contact)) ** 2
-    force = blocked.force_psd[1:] * transfer
+    force = blocked.force_psd[keep] * transfer
     vib = _vibration(run)
-    pairs = {"force": (run.force_psd[1:], force, "force"),
-             "wheel_velocity": (vib["wheel_velocity"][0][1:], np.abs(TWO_PI * f * alpha_w) ** 2 * force, "velocity")}
+    pairs = {"force": (run.force_psd[keep], force, "force"),
+             "wheel_velocity": (vib["wheel_velocity"][0][keep], np.abs(TWO_PI * f * alpha_w) ** 2 * force, "velocity")}
     if "rail_velocity" in vib:
-        pairs["rail_velocity"] = (vib["rail_velocity"][0][1:], np.abs(TWO_PI * f * alpha_r) ** 2 * force, "velocity")
+        pairs["rail_velocity"] = (vib["rail_velocity"][0][keep], np.abs(TWO_PI * f * alpha_r) ** 2 * force,
+                                  "velocity")
     zero = np.zeros_like(q)
     return {key: band_difference(q, got, zero, linear, p, quantity)["difference_dB"]
             for key, (got, linear, quantity) in pairs.items()}
