@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import json
 import math
 import sys
@@ -14,8 +15,10 @@ from ..devices import resolve_device
 from ..errors import ParameterError, UsageError
 from ..experiments import read_record, write_json
 from ..files import atomic_write
-from .common import (check_directory_path, cluster_runner, device_option, output_dir, output_options, progress_printer,
-                     reading, size_options)
+from ..track import Track
+from ..wheel import Wheel
+from .common import (build_structures, check_directory_path, cluster_runner, device_option, output_dir, output_options,
+                     progress_printer, reading, size_options)
 
 #: Spectra of more bins than this get a progress line before the fit (the readers bound them).
 LARGE_SPECTRUM = 50_000
@@ -32,6 +35,9 @@ def add_parser(sub) -> None:
                    "CSV/NPZ table of frequency and PSD (declare its units)")
     p.add_argument("--known", action="append", metavar="NAME=VALUE", help="a known value in SI units (repeatable): "
                    "v0, m, R, E, nu, E_star, F_N, h0, H, q_min, q_max, a, ...")
+    p.add_argument("--set", action="append", metavar="track=PRESET|track.KEY=VALUE|wheel=...", help="the known "
+                   "track and wheel under the contact of a measured table (repeatable; docs/track.md): the model is "
+                   "then the linear chain; a coupled mdroll run on a track records its own")
     p.add_argument("--free", metavar="NAMES", help="comma-separated parameters to fit (default H,q_min,a,h0 and E_star "
                    "with m known, a_jitter)")
     p.add_argument("--band", metavar="LO:HI[Hz|rad/s]", help="fitted band, e.g. 20:20000Hz (default: the spectrum's, "
@@ -147,6 +153,7 @@ def _fit(args) -> int:
     with reading("spectrum file", path):
         spectrum = read_spectrum(path, quantity=args.quantity, window=args.window, frequency_unit=args.frequency_unit,
                                  sided=args.sided, density=args.density, passes=args.passes)
+    spectrum = _with_track(args, spectrum, path)
     if spectrum.omega.size > LARGE_SPECTRUM:
         progress_printer(args)(f"{path}: {spectrum.omega.size} bins; the fit's time grows with them (--bin K "
                                "averages K neighbouring bins first)")
@@ -166,7 +173,8 @@ def _fit(args) -> int:
     with atomic_write(out / "inverse.png") as file:
         plot_fit(result, file)
     with atomic_write(out / "inverse.json", "w") as file:
-        json.dump({"source": str(path), **result.to_dict()}, file, indent=1)
+        track = {"known_track": spectrum.known_track.describe()} if spectrum.known_track is not None else {}
+        json.dump({"source": str(path), **track, **result.to_dict()}, file, indent=1)
     print(result.table())
     if not result.success:
         print(f"mdroll: warning: the optimizer stopped without converging ({result.message}); the estimates and "
@@ -184,6 +192,28 @@ def _fit(args) -> int:
               "(inverse.json: \"accepted\": false)", file=sys.stderr)
         return REJECTED
     return 0
+
+
+def _with_track(args, spectrum, path):
+    """The spectrum with the track and wheel of ``--set`` (a table's), refused for a run that records
+    its own and with ``--bootstrap`` (its ensembles roll on the rigid rail)."""
+    from ..inverse.track_model import KnownTrack
+
+    if spectrum.known_track is not None and args.bootstrap:
+        raise UsageError(f"--bootstrap with {path}, a run on a track: the bootstrap's ensembles roll on the rigid rail")
+    if not args.set:
+        return spectrum
+    bad = [item for item in args.set if item.split("=", 1)[0].split(".", 1)[0].strip() not in ("track", "wheel")]
+    if bad:
+        raise UsageError(f"--set {bad[0]}: invert takes only the track's and the wheel's settings (track=PRESET, "
+                         "track.KEY=VALUE, wheel=PRESET, wheel.KEY=VALUE)")
+    if spectrum.known_track is not None:
+        raise UsageError(f"--set with {path}: the run records its own track and wheel; drop --set")
+    if args.bootstrap:
+        raise UsageError("--bootstrap with --set track/wheel: the bootstrap's ensembles roll on the rigid rail")
+    track, wheel = build_structures(args)
+    return dataclasses.replace(spectrum, known_track=KnownTrack(track or Track.preset("rigid"),
+                                                                wheel or Wheel.preset("rigid")))
 
 
 @contextlib.contextmanager

@@ -118,6 +118,9 @@ def _run_distributed(args) -> int:
     """``mdroll run --workers N | --scheduler ADDRESS``: the run's units on a Dask cluster; every
     finished unit is kept in OUT/units, from which ``--resume OUT`` continues (the same run:
     options that would change it are refused, naming them)."""
+    if build_structures(args) != (None, None):
+        raise UsageError("--set track/wheel is not allowed with --workers or --scheduler: the cluster's runs are "
+                         "on the rigid track; run on a track without them")
     if args.resume:
         out = _resumed_folder(args)
         (saved,) = saved_specs(out / "units")
