@@ -84,13 +84,14 @@ def period_ratios(mdr: np.ndarray, bem: np.ndarray, q: np.ndarray, q_min: float,
 
 
 def filter_bands(q: np.ndarray, q_min: float, q_top: float) -> np.ndarray:
-    """Wavelength band numbers (longest first) wholly on the grid from 2 dq up to q_top and above
+    """Wavelength band numbers (longest first) wholly on the grid from 2 dq up to q_top, above
     q_min (where the roughness is; force and roughness share the window's leakage, which cancels
-    in their ratio to first order)."""
+    in their ratio to first order) and holding at least one grid wavenumber."""
     dq = q[1] - q[0]
     bands = wavelength_bands_of_grid(dq, q_top)
-    lo, _ = wavelength_band_edges_q(bands)
-    return bands[lo >= max(q_min, 2.0 * dq)]
+    lo, hi = wavelength_band_edges_q(bands)
+    _, counts = band_mean_squares(q, np.ones_like(q), dq, lo, hi)
+    return bands[(lo >= max(q_min, 2.0 * dq)) & (counts > 0)]
 
 
 def measured_filter(q: np.ndarray, force_psd: np.ndarray, rough_psd: np.ndarray, stiffness: float, bands) -> list:

@@ -182,7 +182,7 @@ def claims_of(runs: dict, rung: dict) -> list:
             case = min(chosen, key=lambda c: c["case"]["qmin_a"])
             closed = dict(zip(run["closed"]["bands"], run["closed"][surface]["3d"]))
             diff = np.array([m - closed[b] for b, m in zip(case["filter"]["bands"], case["filter"]["3d"])
-                             if closed.get(b) is not None and closed[b] > -15.0])
+                             if closed.get(b) is not None and closed[b] > -15.0 and math.isfinite(m)])
             if diff.size < 2:
                 continue
             claims.append(Claim(
