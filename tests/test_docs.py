@@ -180,6 +180,10 @@ COMMANDS = {
     "python benchmarks/cpu_full_run.py --repeats 3 --out cpu_full_run.json":
         ("options", "python benchmarks/cpu_full_run.py"),
     "OUT=DIR bash benchmarks/gpu_session.sh tests": ("ci", "the GPU machine's session script"),
+    # mdr-vs-3d.md: the study's quick run (minutes on a CPU) and its full run (a GPU)
+    "mdroll study mdr-vs-3d --quick --device cpu --out docs/mdr-vs-3d/quick --force": ("options", "mdroll study"),
+    "python3 -m mdroll study mdr-vs-3d --full --device cuda --out $OUT/mdr3d --no-progress":
+        ("options", "mdroll study"),
 }
 
 

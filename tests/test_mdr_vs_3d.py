@@ -36,9 +36,11 @@ def test_tiny_corrugation_gives_hertz_and_the_linear_force(name, device):
     case = problems.Case("a", name, 0.7, 1e-4, 1.0)
 
     def springs(modulus, radius, approach):
-        """The MDR's own linear force per unit roughness: E* dx sum_{|i| <= M} cos(q i dx), M dx its reach."""
-        reach = math.floor(math.sqrt(radius * approach) / mesh.dx)
-        return lambda q: modulus * mesh.dx * math.sin((reach + 0.5) * q * mesh.dx) / math.sin(0.5 * q * mesh.dx)
+        """The MDR's own linear force per unit roughness, E* s sum_{|i| <= M} cos(q i s), on its
+        springs s = dx / MDR_REFINE apart, M s its reach."""
+        step = mesh.dx / problems.MDR_REFINE
+        reach = math.floor(math.sqrt(radius * approach) / step)
+        return lambda q: modulus * step * math.sin((reach + 0.5) * q * step) / math.sin(0.5 * q * step)
 
     hertz = lambda q: shape.stiffness * math.sin(q * shape.semi_x) / (q * shape.semi_x)  # noqa: E731
     references = {"bem": (bem, hertz, 2e-3, 0.05),  # its discrete contact edge: O(dx / a)
@@ -54,9 +56,9 @@ def test_tiny_corrugation_gives_hertz_and_the_linear_force(name, device):
         for j, q in enumerate(waves):
             swing = np.hypot(force[2 * j] - smooth, force[2 * j + 1] - smooth)
             assert swing == pytest.approx(np.full_like(swing, abs(linear_force(q)) * amplitude), rel=tol), (label, q)
-    # the corrected MDR's discrete reach is the 3-D a_x to half a cell: its force is the 3-D one to O(dx/a)
+    # the corrected MDR's reach is the 3-D a_x to half a spring: its force is the 3-D one to O(s/a)
     assert springs(shape.corrected_modulus, shape.corrected_radius, shape.corrected_approach)(waves[1]) \
-        == pytest.approx(hertz(waves[1]), rel=0.02)
+        == pytest.approx(hertz(waves[1]), rel=2e-3)
 
 
 def test_corrected_sphere_matches_the_ellipse_contact():
@@ -120,6 +122,16 @@ def test_study_at_test_size(device):
     assert len(before_dips) >= 2 and all(abs(measured[b] - linear_3d[b]) < 1.0 for b in before_dips)
     assert isotropic["variants"]["mdr"]["high"]["rel_stderr"] > 0
     assert {c["name"].split()[0] for c in record["claims"]} == {"(a)", "(b)"}
+
+
+def test_refined_lines_keep_their_spectrum_and_samples(device):
+    lines = np.random.default_rng(7).standard_normal((2, 50))
+    fine = to_host(problems.refined(lines, 3, device))
+    assert np.allclose(fine[:, ::3], lines, rtol=0, atol=1e-13)
+    coarse, spectrum = np.fft.rfft(lines), np.fft.rfft(fine)[:, :26] / 3.0
+    assert np.allclose(spectrum[:, :25], coarse[:, :25], atol=1e-12)
+    assert np.allclose(spectrum[:, 25], 0.5 * coarse[:, 25], atol=1e-12)
+    assert np.abs(np.fft.rfft(fine)[:, 26:]).max() < 1e-11
 
 
 def test_self_affine_is_the_same_surface_on_every_device(device):

@@ -37,7 +37,7 @@ import numpy as np
 
 from ... import physics, rough_lines
 from ...bem import extruded, hertz_elliptical, roll, self_affine
-from ...devices import is_cuda
+from ...devices import array_module, is_cuda
 from ...ensemble.psd import array_rows, to_host
 from ...forces.force import contact_force
 from ...params import Params
@@ -50,6 +50,11 @@ SURFACES = ("a", "b", "c")
 INDENTERS = ("sphere", "ellipse")
 #: The MDR variants compared with the 3-D reference (module docstring).
 VARIANTS = ("mdr", "line", "corrected")
+#: Springs of the MDR line per cell of the 3-D grid (odd, so that a_x stays half a spring beyond the
+#: last spring, see :func:`grid`). The MDR's contact edge moves spring by spring: the edge spring
+#: sits at the indentation d dx_MDR / a, and eq 48's edge force needs the roughness to move it, so
+#: the line resolves the contact with a few hundred springs (the 3-D grid's cells are far fewer).
+MDR_REFINE = 15
 #: The window's side as a multiple of the contact length 2 a_x: room for a rough contact's spread
 #: (at h0 = 0.1 d0 a crest three RMS high widens the contact by about 14 %).
 WINDOW_MARGIN = 1.25
@@ -153,14 +158,14 @@ class Case:
         return f"({self.surface}) {self.indenter} H {self.H:g} h0/d0 {self.h0_d0:g} q_min a {self.qmin_a:g}"
 
 
-def line_params(shape: Geometry, mesh: Grid, case: Case, variant: str = "mdr") -> Params:
-    """The MDR's :class:`~mdroll.params.Params` of a case: the line of ``mesh.length`` springs of
-    dx, the roughness of the case (RMS ``h0_d0`` times the 3-D approach, H, q_min = qmin_a / a_x),
-    the sphere and modulus of ``variant`` at the load."""
+def line_params(shape: Geometry, mesh: Grid, case: Case, variant: str = "mdr", refine: int = 1) -> Params:
+    """The MDR's :class:`~mdroll.params.Params` of a case: the line of ``mesh.length`` cells of
+    dx, ``refine`` springs a cell, the roughness of the case (RMS ``h0_d0`` times the 3-D approach,
+    H, q_min = qmin_a / a_x), the sphere and modulus of ``variant`` at the load."""
     modulus, radius = ((shape.corrected_modulus, shape.corrected_radius) if variant == "corrected"
                        else (shape.E_star, shape.radius_x))
     return Params(E=2.0 * (1.0 - NU * NU) * modulus, nu=NU, R=radius, F_N=shape.load, L=mesh.length * mesh.dx,
-                  dx=mesh.dx, h0=case.h0_d0 * shape.approach, H=case.H, q_min=case.qmin_a / shape.semi_x)
+                  dx=mesh.dx / refine, h0=case.h0_d0 * shape.approach, H=case.H, q_min=case.qmin_a / shape.semi_x)
 
 
 def surfaces(shape: Geometry, mesh: Grid, case: Case, seed: int, indices, device: str):
@@ -199,14 +204,31 @@ def variant_lines(shape: Geometry, mesh: Grid, case: Case, heights, seed: int, i
     return heights[:, :, mesh.centre]
 
 
-def mdr_forces(shape: Geometry, mesh: Grid, case: Case, lines, variant: str, device: str) -> np.ndarray:
-    """The MDR force (B, positions) (N) of ``lines`` at the rolling positions: the sweep (exact, eq
-    10-12) on the periodic line at the variant's fixed approach, read at springs
+def refined(lines, refine: int, device: str):
+    """The periodic lines (B, L) on ``refine`` times finer a grid, by band-limited (Fourier)
+    interpolation: the same spectrum, the same values at the old points (NumPy, or CuPy on CUDA)."""
+    lines = array_rows(lines, device)
+    xp = array_module(lines)
+    count = lines.shape[-1]
+    spectrum = xp.fft.rfft(lines, axis=-1)
+    if count % 2 == 0:  # the old Nyquist mode is a cosine: half of it at +q, half at -q
+        spectrum[:, -1] *= 0.5
+    padded = xp.zeros((lines.shape[0], refine * count // 2 + 1), dtype=spectrum.dtype)
+    padded[:, :spectrum.shape[1]] = spectrum
+    return xp.fft.irfft(padded, refine * count, axis=-1) * refine
+
+
+def mdr_forces(shape: Geometry, mesh: Grid, case: Case, lines, variant: str, device: str,
+               refine: int = MDR_REFINE) -> np.ndarray:
+    """The MDR force (B, positions) (N) of ``lines`` (on the 3-D grid) at the rolling positions:
+    the lines refined to ``refine`` springs a cell (:func:`refined`), the sweep (exact, eq 10-12) on
+    the periodic line at the variant's fixed approach, read at the springs of cells
     ``(n - 1) / 2 + s``, where the contact never reaches the line's ends."""
-    p = line_params(shape, mesh, case, variant)
+    p = line_params(shape, mesh, case, variant, refine)
     d = shape.corrected_approach if variant == "corrected" else shape.mdr_approach
-    force = to_host(array_rows(contact_force(lines, p, "sweep", "periodic", d=d, device=device), device))
-    return force[:, mesh.centre:mesh.centre + mesh.positions]
+    fine = refined(lines, refine, device)
+    force = to_host(array_rows(contact_force(fine, p, "sweep", "periodic", d=d, device=device), device))
+    return force[:, mesh.centre * refine:(mesh.centre + mesh.positions) * refine:refine]
 
 
 def bem_forces(shape: Geometry, mesh: Grid, heights, device: str, tol: float):
