@@ -118,8 +118,11 @@ def test_study_at_test_size(device):
     bands = corrugation["filter"]["bands"]
     linear_3d = dict(zip(closed["bands"], closed["a"]["3d"]))
     measured = dict(zip(bands, corrugation["filter"]["3d"]))
-    before_dips = [b for b in bands if linear_3d[b] > -10.0]  # the dips are too deep to measure at this size
-    assert len(before_dips) >= 2 and all(abs(measured[b] - linear_3d[b]) < 1.0 for b in before_dips)
+    mdr = dict(zip(bands, corrugation["filter"]["mdr"]))
+    # both filters of a corrugation are sinc^2(q a) to first order; a 48-position record fills the dips
+    assert len(bands) >= 4 and all(abs(measured[b] - mdr[b]) < 1.0 for b in bands)
+    before_dips = [b for b in bands if linear_3d[b] > -16.0]
+    assert len(before_dips) >= 2 and all(abs(measured[b] - linear_3d[b]) < 2.0 for b in before_dips)
     assert isotropic["variants"]["mdr"]["high"]["rel_stderr"] > 0
     assert {c["name"].split()[0] for c in record["claims"]} == {"(a)", "(b)"}
 

@@ -93,6 +93,7 @@ def figures(runs: dict, forms: dict, rung: dict) -> list:
                "closed forms (lines), CNOSSOS-EU A3", lambda fig: _filters(fig, runs, forms),
                size=(11.0, 3.0 * len(runs))),
         Figure("mdr_vs_3d_cnossos", "The five CNOSSOS-EU A3 cases against the MDR's eq 39 and the linear 3-D "
-               f"filter of the wheel-by-crown ellipse (crown radius {rung['crown_radius']:g} m, H {rung['hursts'][0]:g})",
+               f"filter of the wheel-by-crown ellipse (crown radius {rung['crown_radius']:g} m, "
+               f"H {rung['hursts'][0]:g})",
                lambda fig: _cnossos(fig, forms), size=(12.0, 3.0)),
     ]
