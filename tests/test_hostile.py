@@ -468,10 +468,10 @@ STUDY_CASES = [
     ("another schema", lambda r: json.dumps({"rows": []}), "lacks 'study'"),
     ("truncated", lambda r: json.dumps(r)[:300], "not a JSON study record"),
     ("claims a table", lambda r: r.update(claims={}), "claims = '{}', expected a list"),
-    ("claim without stderr", lambda r: r["claims"][0].pop("stderr") and None, "claims[0]. lacks 'stderr'"),
+    ("claim without stderr", lambda r: r["claims"][0].pop("stderr") and None, "claims[0] lacks 'stderr'"),
     ("measured a text", lambda r: r["claims"][0].update(measured="1.0"), "claims[0].measured"),
-    ("verdicts uncounted", lambda r: r.update(verdicts={}), "verdicts must count"),
-    ("spec without mode", lambda r: r["ensembles"][0]["spec"].pop("mode") and None, "ensembles[0].spec. lacks 'mode'"),
+    ("verdicts uncounted", lambda r: r.update(verdicts={}), "verdicts lacks 'agrees'"),
+    ("spec without mode", lambda r: r["ensembles"][0]["spec"].pop("mode") and None, "ensembles[0].spec lacks 'mode'"),
 ]
 
 

@@ -2,6 +2,8 @@
 bit; a state space of zero output leaves the kernel's numbers unchanged; at small roughness the
 time-domain force equals the linear chain's in every 1/3-octave band 100 Hz - 5 kHz."""
 
+import argparse
+
 import numpy as np
 import pytest
 
@@ -85,3 +87,13 @@ def test_cli_track_settings(cli, one_line_error, tmp_path):
     for setting, needle in [("track.bogus=1", "track.bogus"), ("wheel=nope", "wheel = 'nope'"),
                             ("track.pad_loss=-1", "track.pad_loss")]:
         one_line_error(cli("run", "--mode", "coupled", "--set", setting, "--out", str(tmp_path / "bad")), needle)
+
+
+def test_cli_settings_give_the_track_and_the_wheel():
+    from mdroll.cli.common import build_structures
+
+    settings = ["H=0.6", "wheel.mass=400", "wheel=standard-920", "track.pad_loss=0.3"]
+    track, wheel = build_structures(argparse.Namespace(set=settings))
+    assert track == Track(pad_loss=0.3)
+    assert wheel == Wheel.preset("standard-920").with_values(mass=400.0)
+    assert build_structures(argparse.Namespace(set=["H=0.6"])) == (None, None)

@@ -12,10 +12,10 @@ from pathlib import Path
 
 from ..devices import resolve_device
 from ..errors import ParameterError, UsageError
-from ..experiments import write_json
+from ..experiments import read_record, write_json
 from ..files import atomic_write
-from .common import (check_directory_path, cluster_runner, output_dir, output_options, progress_printer, reading,
-                     size_options)
+from .common import (check_directory_path, cluster_runner, device_option, output_dir, output_options, progress_printer,
+                     reading, size_options)
 
 #: Spectra of more bins than this get a progress line before the fit (the readers bound them).
 LARGE_SPECTRUM = 50_000
@@ -49,7 +49,7 @@ def add_parser(sub) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS", help="run the bootstrap's ensembles on an existing Dask "
                    "cluster (tcp://host:8786)")
     p.add_argument("--no-profile", action="store_true", help="skip the profile likelihoods")
-    p.add_argument("--device", default="auto", help="device of the bootstrap's and round trip's simulations")
+    device_option(p, "device of the bootstrap's and round trip's simulations")
     p.add_argument("--round-trip", action="store_true", help="run the round-trip study instead: roundtrip.json, "
                    "roundtrip.png, roundtrip.md")
     size_options(p, quick="round trip: the CPU-sized grid (default)", full="round trip: the full grid (GPU)")
@@ -93,11 +93,10 @@ def execute(args) -> int:
 
 def _report(args) -> int:
     """``--report JSON ...``: the Markdown tables of round-trip records."""
-    from ..inverse.records import read_record
-    from ..inverse.roundtrip_report import merge_records, report
+    from ..inverse.roundtrip_report import ROUNDTRIP_RECORD, merge_records, report
 
     with _option("--report"):
-        records = [read_record(name) for name in args.report]
+        records = [read_record(name, ROUNDTRIP_RECORD) for name in args.report]
     print(report(merge_records(records)))
     return 0
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from ..devices import resolve_device
 from ..errors import UsageError
-from .common import Parser, check_directory_path, output_dir, output_options, size_options
+from .common import Parser, check_directory_path, device_option, output_dir, output_options, size_options
 
 
 def add_parser(sub) -> None:
@@ -20,7 +20,7 @@ def add_parser(sub) -> None:
     check.add_argument("--only", action="append", metavar="NAME", help="run only this study (repeatable): "
                        "lines, round_trip, measured_profile, high_band, eq63, dynamics, contact_filter")
     check.add_argument("--seed", type=int, default=0)
-    check.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
+    device_option(check)
     output_options(check)
     filt = tasks.add_parser("filter", help="the MDR contact filter beside CNOSSOS-EU A3: contact_filter.csv and .png")
     output_options(filt)

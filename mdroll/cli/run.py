@@ -18,14 +18,15 @@ from ..ensemble.batching import check_count_fits, check_run_fits, realization_by
 from ..ensemble.checkpoint import CHECKPOINT, read_checkpoint
 from ..ensemble.lines import check_seed
 from ..ensemble.pipeline import run_ensemble
+from ..ensemble.realizations import DEFAULT_REALIZATIONS
 from ..ensemble.result import result_summary
 from ..ensemble.spec import EnsembleSpec
 from ..ensemble.validity import parameter_concerns, result_concerns
 from ..errors import SchedulerLost, UsageError
 from ..files import atomic_write, remove_stale_temporaries
 from ..railway.report import write_band_outputs
-from .common import (build_params, build_structures, cluster_options, cluster_runner, format_value, lock, output_dir, output_options,
-                     param_options)
+from .common import (build_params, build_structures, cluster_options, cluster_runner, device_option, format_value, lock,
+                     output_dir, output_options, param_options)
 
 #: What ``run`` and ``merge`` write; ``--force`` removes the old ones first, so that a finished
 #: run's files never mix with a new run's.
@@ -37,7 +38,8 @@ RUN_DEFAULTS = {"seed": 0, "algorithm": None, "mode": "decoupled", "boundary": "
 def add_parser(sub) -> None:
     p = sub.add_parser("run", help="run an ensemble and write spectra, summary and plots")
     param_options(p)
-    p.add_argument("--realizations", type=int, help="number of realizations (default n_real = 300)")
+    p.add_argument("--realizations", type=int, help=f"number of realizations (default {DEFAULT_REALIZATIONS}); "
+                   "wins over an n_real of --preset, --config or --set")
     p.add_argument("--first", type=int, help="index of the first realization (default 0): split an ensemble "
                    "across processes, then `mdroll merge`")
     p.add_argument("--seed", type=int, help="master seed (default 0)")
@@ -46,7 +48,7 @@ def add_parser(sub) -> None:
         f"{entry.name}: {entry.description}, {entry.complexity.text}" for entry in REGISTRY.values()))
     p.add_argument("--mode", choices=["decoupled", "coupled"], help="default decoupled")
     p.add_argument("--boundary", choices=["open", "periodic"], help="default open")
-    p.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
+    device_option(p)
     p.add_argument("--batch", type=int, help="realizations per batch (default: from free memory)")
     p.add_argument("--memory-limit", type=float, metavar="GIB", help="cap the memory batches are sized from (GiB)")
     estimator = p.add_mutually_exclusive_group()
@@ -69,22 +71,19 @@ def execute(args) -> int:
         return _run_distributed(args)
     device = resolve_device(args.device)
     if args.resume:
-        if args.out:
-            raise UsageError(f"--out {args.out} with --resume {args.resume}: a resumed run writes into its own "
-                             "directory; drop --out")
-        out = Path(args.resume)
+        out = _resumed_folder(args)
         if not (out / CHECKPOINT).is_file():
             raise UsageError(f"--resume {args.resume}: no {CHECKPOINT} there to continue from")
         lock(out, "--resume")
         meta, _ = read_checkpoint(out / CHECKPOINT)
         # the checkpoint's run, with anything given on the command line on top (compared when resuming)
-        params = build_params(args, base=meta["params"])
+        params, count = build_params(args, base=meta["params"])
         settings = _settings(args, meta)
-        realizations = meta["realizations"] if args.realizations is None and args.first is None else _realizations(args, params)
+        realizations = meta["realizations"] if count is None and args.first is None else _realizations(args, count)
     else:
-        params = build_params(args)
+        params, count = build_params(args)
         settings = _settings(args, RUN_DEFAULTS)
-        realizations = _realizations(args, params)
+        realizations = _realizations(args, count)
     _check_settings(settings, args.batch)
     _refuse_outside_validity(args, params)
     memory = None
@@ -107,15 +106,20 @@ def execute(args) -> int:
     return 0
 
 
+def _resumed_folder(args) -> Path:
+    """The folder of ``--resume DIR``, which a resumed run writes into (``--out`` is refused)."""
+    if args.out:
+        raise UsageError(f"--out {args.out} with --resume {args.resume}: a resumed run writes into its own "
+                         "directory; drop --out")
+    return Path(args.resume)
+
+
 def _run_distributed(args) -> int:
     """``mdroll run --workers N | --scheduler ADDRESS``: the run's units on a Dask cluster; every
     finished unit is kept in OUT/units, from which ``--resume OUT`` continues (the same run:
     options that would change it are refused, naming them)."""
     if args.resume:
-        if args.out:
-            raise UsageError(f"--out {args.out} with --resume {args.resume}: a resumed run writes into its own "
-                             "directory; drop --out")
-        out = Path(args.resume)
+        out = _resumed_folder(args)
         (saved,) = saved_specs(out / "units")
         spec = _distributed_spec(args, saved.params.as_dict(), {k: getattr(saved, k) for k in RUN_DEFAULTS},
                                  saved.indices)
@@ -142,14 +146,12 @@ def _run_distributed(args) -> int:
 def _distributed_spec(args, base_params, base_settings: dict, base_indices) -> EnsembleSpec:
     """The spec of a distributed run: the command line over ``base_params``, ``base_settings``
     and ``base_indices`` (a resumed run's), else over the defaults."""
-    params = build_params(args, base=base_params)
+    params, count = build_params(args, base=base_params)
     settings = _settings(args, base_settings)
-    if base_indices is not None and args.realizations is None and args.first is None:
+    if base_indices is not None and count is None and args.first is None:
         indices = base_indices
     else:
-        indices = _realizations(args, params)
-    if not isinstance(indices, range):
-        raise UsageError(f"--realizations {args.realizations}: the number of realizations must be at least 1")
+        indices = _realizations(args, count)
     _refuse_outside_validity(args, params)
     return EnsembleSpec(params, first=indices.start, realizations=len(indices), **settings)
 
@@ -182,14 +184,15 @@ def _refuse_outside_validity(args, params) -> None:
         raise UsageError("; ".join(concerns) + " (--force-physics runs it anyway)")
 
 
-def _realizations(args, params):
-    count = params.n_real if args.realizations is None else args.realizations
+def _realizations(args, count: int | None) -> range:
+    """The run's realization indices: ``count`` (:data:`~mdroll.params.DEFAULT_REALIZATIONS` when
+    None) from ``--first``."""
+    count = DEFAULT_REALIZATIONS if count is None else count
     first = args.first or 0
     if first < 0:
         raise UsageError(f"--first {first}: the first realization index must be >= 0")
-    if count > 0:
-        check_count_fits(count)
-    return range(first, first + count) if count > 0 else count  # count <= 0: run_ensemble names the error
+    check_count_fits(count)
+    return range(first, first + count)
 
 
 def _positive_gib(value: float) -> int:
