@@ -193,6 +193,10 @@ COMMANDS = {
     "--correction none": ("options", "mdroll invert"),
     "mdroll invert accel.csv --frequency-unit Hz --sided one --density Hz --passes 30 --known v0=10 --known m=500 "
     "--known R=0.5 --set track=ballasted-soft-pad": ("options", "mdroll invert"),
+    # mdr-vs-3d.md: the study's quick run (minutes on a CPU) and its full run (a GPU)
+    "mdroll study mdr-vs-3d --quick --device cpu --out docs/mdr-vs-3d/quick --force": ("options", "mdroll study"),
+    "python3 -m mdroll study mdr-vs-3d --full --device cuda --out $OUT/mdr3d --no-progress":
+        ("options", "mdroll study"),
 }
 
 
