@@ -78,10 +78,11 @@ def cluster_options(p) -> None:
 
 
 @contextlib.contextmanager
-def cluster_runner(args, checkpoint=None):
+def cluster_runner(args):
     """The runner that ``--workers``/``--scheduler`` ask for (a :class:`mdroll.distributed.DaskRunner`
-    for ``run_specs(..., runner=)``), or None to run in this process; and the device the
-    ensembles then run on (a local cluster pins one worker to each GPU, which it sees as cuda:0)."""
+    for ``run_specs(..., runner=)``; set its ``checkpoint`` to keep the units), or None to run in
+    this process; and the device the ensembles then run on (a local cluster pins one worker to
+    each GPU, which it sees as cuda:0)."""
     if args.workers is None and args.scheduler is None:
         yield None, args.device
         return
@@ -96,7 +97,7 @@ def cluster_runner(args, checkpoint=None):
 
     device = args.device if args.scheduler is not None or args.device == "cpu" else "auto"
     with connect(args.workers, args.scheduler, args.device, getattr(args, "verbose", False)) as client:
-        yield DaskRunner(client, checkpoint=checkpoint), device
+        yield DaskRunner(client), device
 
 
 def progress_printer(args):
@@ -112,13 +113,19 @@ def _parse_value(key: str, text: str):
         raise UsageError(f"unknown parameter {key!r}; valid ones are: {', '.join(PARAM_NAMES)}")
     if key in TEXT_FIELDS:
         return text
-    try:
-        if key == "n_real":
+    if key == "n_real":
+        try:
             return int(text)
+        except ValueError:
+            raise UsageError(f"--set {key}={text}: not an integer") from None
+    return _number(key, text)
+
+
+def _number(key: str, text: str) -> float:
+    try:
         return float(text)
     except ValueError:
-        kind = "an integer" if key == "n_real" else "a number"
-        raise UsageError(f"--set {key}={text}: not {kind}") from None
+        raise UsageError(f"--set {key}={text}: not a number") from None
 
 
 def load_config(path: str) -> dict:
@@ -187,7 +194,7 @@ def build_structures(args):
         for key, text in wheel_items:
             if key != "wheel":
                 name = key.removeprefix("wheel.")
-                wheel = wheel.with_values(**{name: text if name == "kind" else _parse_value(key, text)})
+                wheel = wheel.with_values(**{name: text if name == "kind" else _number(key, text)})
     return track, wheel
 
 
@@ -219,10 +226,8 @@ def output_dir(args, clear: tuple[str, ...] = ()) -> Path:
     started in the same second never share it)."""
     if args.out:
         out = Path(args.out)
-        check_directory_path(out, "--out")
+        check_output(args)
         _make_directory(out, "--out", exist_ok=True)
-        if any(entry.name != LOCK for entry in out.iterdir()) and not args.force:
-            raise UsageError(f"output directory {str(out)!r} exists and is not empty; use --force to write into it")
         lock(out, "--out")
         for name in clear:
             (out / name).unlink(missing_ok=True)
@@ -242,6 +247,17 @@ def output_dir(args, clear: tuple[str, ...] = ()) -> Path:
         lock(out, "output directory")
         return out
     raise UsageError(f"output directory: no free name under {str(base)!r}")  # pragma: no cover - 2^24 names a pid
+
+
+def check_output(args) -> None:
+    """``--out`` checked as :func:`output_dir` checks it, making nothing: for a command that makes
+    its folder only once it has something to write (a bad input then leaves nothing behind)."""
+    if not args.out:
+        return
+    out = Path(args.out)
+    check_directory_path(out, "--out")
+    if out.is_dir() and any(entry.name != LOCK for entry in out.iterdir()) and not args.force:
+        raise UsageError(f"output directory {str(out)!r} exists and is not empty; use --force to write into it")
 
 
 def check_directory_path(path: Path, option: str) -> None:
