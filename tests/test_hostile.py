@@ -215,13 +215,13 @@ ROUND_TRIP_CASES = [
     (["--correction-passes", "1000000000"], "--correction-passes: correction_passes = 1000000000"),
     (["--passes-list", "1,1000000000"], "--passes-list: passes = 1000000000"),
     (["--known", "v0=20"], "not for --round-trip"),
+    (["--lengths", "1e300"], "--lengths: L = 1e+300 m is not allowed"),
 ]
 
 
 @pytest.mark.parametrize("options,needle", ROUND_TRIP_CASES, ids=[c[1] for c in ROUND_TRIP_CASES])
 def test_round_trip_counts_are_bounded_before_any_work(tmp_path, capsys, options, needle):
     line = _refused(capsys, needle, "invert", "--round-trip", *options, "--device", "cpu", "--out", tmp_path / "o")
-    assert "from 1 to" in line or "not for" in line
     assert not (tmp_path / "o").exists()
 
 

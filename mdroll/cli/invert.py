@@ -123,7 +123,7 @@ def _round_trip(args) -> int:
     workers = 1 if args.workers is None else args.workers
     for option, keyword, value in (("--workers", "workers", workers), ("--passes-list", "passes", passes),
                                    ("--correction-passes", "correction_passes", args.correction_passes),
-                                   ("--repeats", "repeats", args.repeats)):
+                                   ("--repeats", "repeats", args.repeats), ("--lengths", "lengths", lengths)):
         with _option(option):
             check_study_counts(**{keyword: value})
     device = resolve_device(args.device)  # every option checked before the folder is made

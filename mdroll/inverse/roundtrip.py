@@ -233,11 +233,14 @@ def realistic_case(truth: Params, passes: int, seed: int, device: str, folder, n
                                              "noise_floor": floor, "fit_s": time.perf_counter() - t1})
 
 
-def check_study_counts(workers=1, passes=None, correction_passes=None, repeats=None) -> None:
+def check_study_counts(workers=1, passes=None, correction_passes=None, repeats=None, lengths=None) -> None:
     """:func:`run_study`'s counts, each bounded (a ParameterError naming it and its range):
     ``workers`` at most the cores this process may use, ``passes`` (each) and ``correction_passes``
-    at most :data:`~mdroll.inverse.observed.MAX_PASSES`, ``repeats`` at most :data:`MAX_REPEATS`."""
+    at most :data:`~mdroll.inverse.observed.MAX_PASSES`, ``repeats`` at most :data:`MAX_REPEATS`;
+    and ``lengths``, each a line that :class:`~mdroll.params.Params` allows."""
     check_integer("workers", workers, 1, "processes", cpu_cores())
+    for length in lengths or ():
+        Params(L=length)
     for k in passes or ():
         check_integer("passes", k, 1, "passes", MAX_PASSES)
     if correction_passes is not None:
@@ -267,7 +270,7 @@ def run_study(size: str = "quick", device: str = "auto", folder=None, progress=l
     plan = SIZES.rung(size)
     if correction not in ("simulated", "none"):
         raise ParameterError(f"correction = {correction!r} is not allowed: use 'simulated' or 'none'")
-    check_study_counts(workers, passes, correction_passes, repeats)
+    check_study_counts(workers, passes, correction_passes, repeats, lengths)
     if repeats is not None:
         plan = dataclasses.replace(plan, repeats=repeats)
     cells_k = tuple(plan.passes if passes is None else passes)
