@@ -186,6 +186,13 @@ COMMANDS = {
     "python benchmarks/cpu_full_run.py --repeats 3 --out cpu_full_run.json":
         ("options", "python benchmarks/cpu_full_run.py"),
     "OUT=DIR bash benchmarks/gpu_session.sh tests": ("ci", "the GPU machine's session script"),
+    # track.md: the track study (quick: minutes of CPU; full: GPU) and the inverse fit on a track
+    "mdroll roughness check --only track --device cpu --out track-quick": ("options", "mdroll roughness check"),
+    "mdroll roughness check --full --only track --device cuda --out track-full": ("options", "mdroll roughness check"),
+    "mdroll invert run-on-track --known m=500 --known R=0.5 --known E=2.1e11 --known nu=0.3 --band 300:20000Hz "
+    "--correction none": ("options", "mdroll invert"),
+    "mdroll invert accel.csv --frequency-unit Hz --sided one --density Hz --passes 30 --known v0=10 --known m=500 "
+    "--known R=0.5 --set track=ballasted-soft-pad": ("options", "mdroll invert"),
 }
 
 

@@ -403,7 +403,7 @@ MESSAGE_CASES = [
     (["run", "--batch", "-2", *TINY], "batch = -2"),
     (["invert", "--band", "-20:30", "{spectra}"], "--option=VALUE"),
     (["run", "--first", str(2**64), *TINY], "0 .. 9223372036854775807"),
-    (["run", "--mode", "coupled", "--set", "wheel.mass=abc", *TINY], "--set wheel.mass=abc: not a number"),
+    (["run", "--mode", "coupled", "--set", "wheel.mass=abc", *TINY], "wheel.mass = 'abc' is not allowed"),
     (["run", "--mode", "coupled", "--set", "wheel.m=1", *TINY], "the wheel keys are"),
     (["run", "--mode", "coupled", "--set", "track=nonsense", *TINY], "track = 'nonsense'"),
     (["run", "--scheduler", "nonsense", *TINY], "is not an address"),
@@ -540,10 +540,10 @@ STUDY_CASES = [
     ("another schema", lambda r: json.dumps({"rows": []}), "lacks 'study'"),
     ("truncated", lambda r: json.dumps(r)[:300], "not a JSON study record"),
     ("claims a table", lambda r: r.update(claims={}), "claims = '{}', expected a list"),
-    ("claim without stderr", lambda r: r["claims"][0].pop("stderr") and None, "claims[0]. lacks 'stderr'"),
+    ("claim without stderr", lambda r: r["claims"][0].pop("stderr") and None, "claims[0] lacks 'stderr'"),
     ("measured a text", lambda r: r["claims"][0].update(measured="1.0"), "claims[0].measured"),
-    ("verdicts uncounted", lambda r: r.update(verdicts={}), "verdicts must count"),
-    ("spec without mode", lambda r: r["ensembles"][0]["spec"].pop("mode") and None, "ensembles[0].spec. lacks 'mode'"),
+    ("verdicts uncounted", lambda r: r.update(verdicts={}), "verdicts lacks 'agrees'"),
+    ("spec without mode", lambda r: r["ensembles"][0]["spec"].pop("mode") and None, "ensembles[0].spec lacks 'mode'"),
 ]
 
 

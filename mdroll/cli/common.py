@@ -18,6 +18,7 @@ from pathlib import Path
 
 from ..errors import MdrollError, UsageError
 from ..files import read_toml
+from ..settings import split_setting
 from ..track import Track
 from ..wheel import Wheel
 from ..ensemble.realizations import COUNT_KEY, read_params
@@ -57,6 +58,11 @@ def param_options(p) -> None:
     p.add_argument("--config", metavar="FILE.toml", help="parameters from a TOML file")
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="set one parameter (repeatable), SI units")
     p.add_argument("--preset", choices=sorted(PRESETS), help="quick: L = 0.2 m, 8 realizations")
+
+
+def device_option(p, what: str = "auto, cpu, cuda or cuda:N") -> None:
+    """``--device`` (default auto, :func:`mdroll.devices.resolve_device`); ``what``: its help."""
+    p.add_argument("--device", default="auto", help=what)
 
 
 def size_options(p, quick: str, full: str) -> None:
@@ -117,19 +123,13 @@ def _parse_value(key: str, text: str):
         raise UsageError(f"unknown parameter {key!r}; valid ones are: {', '.join(PARAM_NAMES)}")
     if key in TEXT_FIELDS:
         return text
-    if key == COUNT_KEY:
-        try:
-            return int(text)
-        except ValueError:
-            raise UsageError(f"--set {key}={text}: not an integer") from None
-    return _number(key, text)
-
-
-def _number(key: str, text: str) -> float:
     try:
+        if key == COUNT_KEY:
+            return int(text)
         return float(text)
     except ValueError:
-        raise UsageError(f"--set {key}={text}: not a number") from None
+        kind = "an integer" if key == COUNT_KEY else "a number"
+        raise UsageError(f"--set {key}={text}: not {kind}") from None
 
 
 def load_config(path: str) -> dict:
@@ -163,18 +163,20 @@ def build_params(args, base: dict | None = None) -> tuple[Params, int | None]:
         values.update(PRESETS[args.preset])
     if getattr(args, "config", None):
         values.update(load_config(args.config))
-    for item in getattr(args, "set", None) or []:
-        if "=" not in item:
-            raise UsageError(f"--set expects key=value, got {item!r}")
-        key, text = item.split("=", 1)
-        if _structure(key.strip()):
+    for key, text in _settings(args):
+        if _structure(key):
             continue  # the track's and the wheel's: :func:`build_structures`
-        values[key.strip()] = _parse_value(key.strip(), text.strip())
+        values[key] = _parse_value(key, text)
     if getattr(args, "realizations", None) is not None:
         if args.realizations < 1:
             raise UsageError(f"--realizations {args.realizations}: the number of realizations must be at least 1")
         values[COUNT_KEY] = args.realizations
     return read_params(values)
+
+
+def _settings(args) -> list[tuple[str, str]]:
+    """The ``--set`` items as (KEY, VALUE): :func:`mdroll.settings.split_setting`."""
+    return [split_setting(item, "--set KEY=VALUE") for item in getattr(args, "set", None) or []]
 
 
 def _structure(key: str) -> str | None:
@@ -185,23 +187,15 @@ def _structure(key: str) -> str | None:
 
 def build_structures(args):
     """The run's (track, wheel) from ``--set track=PRESET``, ``track.KEY=VALUE``, ``wheel=PRESET``
-    and ``wheel.KEY=VALUE`` (None where none is given): :meth:`mdroll.track.Track.from_settings`;
-    the wheel's preset first, then its numeric keys."""
-    items = [item.split("=", 1) for item in getattr(args, "set", None) or [] if "=" in item]
-    track_items = [f"{k.strip()}={v.strip()}" for k, v in items if _structure(k.strip()) == "track"]
-    wheel_items = [(k.strip(), v.strip()) for k, v in items if _structure(k.strip()) == "wheel"]
-    track = Track.from_settings(track_items) if track_items else None
-    wheel = None
-    if wheel_items:
-        wheel = Wheel()
-        for key, text in wheel_items:
-            if key == "wheel":
-                wheel = Wheel.preset(text)
-        for key, text in wheel_items:
-            if key != "wheel":
-                name = key.removeprefix("wheel.")
-                wheel = wheel.with_values(**{name: text if name == "kind" else _number(key, text)})
-    return track, wheel
+    and ``wheel.KEY=VALUE`` (None where none is given):
+    :meth:`mdroll.settings.Presettable.from_settings` of :class:`~mdroll.track.Track` and
+    :class:`~mdroll.wheel.Wheel`."""
+    settings = _settings(args)
+    made = []
+    for kind in (Track, Wheel):
+        own = [(key, text) for key, text in settings if _structure(key) == kind.PREFIX]
+        made.append(kind.from_settings(own) if own else None)
+    return tuple(made)
 
 
 def format_value(value) -> str:

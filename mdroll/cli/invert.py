@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import json
 import math
 import sys
@@ -13,10 +14,12 @@ from pathlib import Path
 from ..arguments import check_integer
 from ..devices import resolve_device
 from ..errors import ParameterError, UsageError
-from ..experiments import write_json
+from ..experiments import read_record, write_json
 from ..files import atomic_write
-from .common import (check_output, cluster_runner, output_dir, output_options, progress_printer, reading,
-                     size_options)
+from ..track import Track
+from ..wheel import Wheel
+from .common import (build_structures, check_output, cluster_runner, device_option, output_dir, output_options,
+                     progress_printer, reading, size_options)
 
 #: Spectra of more bins than this get a progress line before the fit (the readers bound them).
 LARGE_SPECTRUM = 50_000
@@ -33,6 +36,9 @@ def add_parser(sub) -> None:
                    "CSV/NPZ table of frequency and PSD (declare its units)")
     p.add_argument("--known", action="append", metavar="NAME=VALUE", help="a known value in SI units (repeatable): "
                    "v0, m, R, E, nu, E_star, F_N, h0, H, q_min, q_max, a, ...")
+    p.add_argument("--set", action="append", metavar="track=PRESET|track.KEY=VALUE|wheel=...", help="the known "
+                   "track and wheel under the contact of a measured table (repeatable; docs/track.md): the model is "
+                   "then the linear chain; a coupled mdroll run on a track records its own")
     p.add_argument("--free", metavar="NAMES", help="comma-separated parameters to fit (default H,q_min,a,h0 and E_star "
                    "with m known, a_jitter)")
     p.add_argument("--band", metavar="LO:HI[Hz|rad/s]", help="fitted band, e.g. 20:20000Hz (default: the spectrum's, "
@@ -50,7 +56,7 @@ def add_parser(sub) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS", help="run the bootstrap's ensembles on an existing Dask "
                    "cluster (tcp://host:8786)")
     p.add_argument("--no-profile", action="store_true", help="skip the profile likelihoods")
-    p.add_argument("--device", default="auto", help="device of the bootstrap's and round trip's simulations")
+    device_option(p, "device of the bootstrap's and round trip's simulations")
     p.add_argument("--round-trip", action="store_true", help="run the round-trip study instead: roundtrip.json, "
                    "roundtrip.png, roundtrip.md")
     size_options(p, quick="round trip: the CPU-sized grid (default)", full="round trip: the full grid (GPU)")
@@ -94,11 +100,10 @@ def execute(args) -> int:
 
 def _report(args) -> int:
     """``--report JSON ...``: the Markdown tables of round-trip records."""
-    from ..inverse.records import read_record
-    from ..inverse.roundtrip_report import merge_records, report
+    from ..inverse.roundtrip_report import ROUNDTRIP_RECORD, merge_records, report
 
     with _option("--report"):
-        records = [read_record(name) for name in args.report]
+        records = [read_record(name, ROUNDTRIP_RECORD) for name in args.report]
     print(report(merge_records(records)))
     return 0
 
@@ -175,6 +180,7 @@ def _fit(args) -> int:
     with reading("spectrum file", path):
         spectrum = read_spectrum(path, quantity=args.quantity, window=args.window, frequency_unit=args.frequency_unit,
                                  sided=args.sided, density=args.density, passes=args.passes)
+    spectrum = _with_track(args, spectrum, path)
     simulated = (args.correction or ("simulated" if spectrum.simulation else "none")) == "simulated"
     if args.correction_passes is not None and not simulated:
         raise UsageError(f"--correction-passes {args.correction_passes}: {path} is fitted without the simulated "
@@ -201,7 +207,8 @@ def _fit(args) -> int:
     with atomic_write(out / "inverse.png") as file:
         plot_fit(result, file)
     with atomic_write(out / "inverse.json", "w") as file:
-        json.dump({"source": str(path), **result.to_dict()}, file, indent=1)
+        track = {"known_track": spectrum.known_track.describe()} if spectrum.known_track is not None else {}
+        json.dump({"source": str(path), **track, **result.to_dict()}, file, indent=1)
     print(result.table())
     if not result.success:
         print(f"mdroll: warning: the optimizer stopped without converging ({result.message}); the estimates and "
@@ -219,6 +226,28 @@ def _fit(args) -> int:
               "(inverse.json: \"accepted\": false)", file=sys.stderr)
         return REJECTED
     return 0
+
+
+def _with_track(args, spectrum, path):
+    """The spectrum with the track and wheel of ``--set`` (a table's), refused for a run that records
+    its own and with ``--bootstrap`` (its ensembles roll on the rigid rail)."""
+    from ..inverse.track_model import KnownTrack
+
+    if spectrum.known_track is not None and args.bootstrap:
+        raise UsageError(f"--bootstrap with {path}, a run on a track: the bootstrap's ensembles roll on the rigid rail")
+    if not args.set:
+        return spectrum
+    bad = [item for item in args.set if item.split("=", 1)[0].split(".", 1)[0].strip() not in ("track", "wheel")]
+    if bad:
+        raise UsageError(f"--set {bad[0]}: invert takes only the track's and the wheel's settings (track=PRESET, "
+                         "track.KEY=VALUE, wheel=PRESET, wheel.KEY=VALUE)")
+    if spectrum.known_track is not None:
+        raise UsageError(f"--set with {path}: the run records its own track and wheel; drop --set")
+    if args.bootstrap:
+        raise UsageError("--bootstrap with --set track/wheel: the bootstrap's ensembles roll on the rigid rail")
+    track, wheel = build_structures(args)
+    return dataclasses.replace(spectrum, known_track=KnownTrack(track or Track.preset("rigid"),
+                                                                wheel or Wheel.preset("rigid")))
 
 
 @contextlib.contextmanager

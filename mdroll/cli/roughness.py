@@ -6,7 +6,7 @@ from __future__ import annotations
 from ..devices import resolve_device
 from ..ensemble.lines import check_seed
 from ..errors import UsageError
-from .common import Parser, check_output, output_dir, output_options, size_options
+from .common import Parser, check_output, device_option, output_dir, output_options, size_options
 
 
 def add_parser(sub) -> None:
@@ -14,12 +14,13 @@ def add_parser(sub) -> None:
                        "profiles (docs/roughness.md)")
     tasks = p.add_subparsers(dest="task", required=True, parser_class=Parser)
     check = tasks.add_parser("check", help="line spectra, dB round trip, measured profile, eq 39 high band, eq 63, "
-                             "coupled vs decoupled, contact filter: roughness.json; exit 1 on a failure")
+                             "coupled vs decoupled, contact filter, the wheel on a track at small and large "
+                             "roughness: roughness.json; exit 1 on a failure")
     size_options(check, quick="sizes for a CPU (default)", full="thesis-scale ensembles (GPU)")
     check.add_argument("--only", action="append", metavar="NAME", help="run only this study (repeatable): "
-                       "lines, round_trip, measured_profile, high_band, eq63, dynamics, contact_filter")
+                       "lines, round_trip, measured_profile, high_band, eq63, dynamics, contact_filter, track")
     check.add_argument("--seed", type=int, default=0)
-    check.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
+    device_option(check)
     output_options(check)
     filt = tasks.add_parser("filter", help="the MDR contact filter beside CNOSSOS-EU A3: contact_filter.csv and .png")
     output_options(filt)

@@ -25,8 +25,8 @@ from ..ensemble.validity import parameter_concerns, result_concerns
 from ..errors import SchedulerLost, UsageError
 from ..files import atomic_write, remove_stale_temporaries
 from ..railway.report import write_band_outputs
-from .common import (build_params, build_structures, check_output, cluster_options, cluster_runner, format_value, lock,
-                     output_dir, output_options, param_options)
+from .common import (build_params, build_structures, check_output, cluster_options, cluster_runner, device_option,
+                     format_value, lock, output_dir, output_options, param_options)
 
 #: What ``run`` and ``merge`` write; ``--force`` removes the old ones first, so that a finished
 #: run's files never mix with a new run's.
@@ -48,7 +48,7 @@ def add_parser(sub) -> None:
         f"{entry.name}: {entry.description}, {entry.complexity.text}" for entry in REGISTRY.values()))
     p.add_argument("--mode", choices=["decoupled", "coupled"], help="default decoupled")
     p.add_argument("--boundary", choices=["open", "periodic"], help="default open")
-    p.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
+    device_option(p)
     p.add_argument("--batch", type=int, help="realizations per batch (default: from free memory)")
     p.add_argument("--memory-limit", type=float, metavar="GIB", help="cap the memory batches are sized from (GiB)")
     estimator = p.add_mutually_exclusive_group()
@@ -71,10 +71,7 @@ def execute(args) -> int:
         return _run_distributed(args)
     device = resolve_device(args.device)
     if args.resume:
-        if args.out:
-            raise UsageError(f"--out {args.out} with --resume {args.resume}: a resumed run writes into its own "
-                             "directory; drop --out")
-        out = Path(args.resume)
+        out = _resumed_folder(args)
         if not (out / CHECKPOINT).is_file():
             raise UsageError(f"--resume {args.resume}: no {CHECKPOINT} there to continue from")
         lock(out, "--resume")
@@ -109,15 +106,23 @@ def execute(args) -> int:
     return 0
 
 
+def _resumed_folder(args) -> Path:
+    """The folder of ``--resume DIR``, which a resumed run writes into (``--out`` is refused)."""
+    if args.out:
+        raise UsageError(f"--out {args.out} with --resume {args.resume}: a resumed run writes into its own "
+                         "directory; drop --out")
+    return Path(args.resume)
+
+
 def _run_distributed(args) -> int:
     """``mdroll run --workers N | --scheduler ADDRESS``: the run's units on a Dask cluster; every
     finished unit is kept in OUT/units, from which ``--resume OUT`` continues (the same run:
     options that would change it are refused, naming them)."""
+    if build_structures(args) != (None, None):
+        raise UsageError("--set track/wheel is not allowed with --workers or --scheduler: the cluster's runs are "
+                         "on the rigid track; run on a track without them")
     if args.resume:
-        if args.out:
-            raise UsageError(f"--out {args.out} with --resume {args.resume}: a resumed run writes into its own "
-                             "directory; drop --out")
-        out = Path(args.resume)
+        out = _resumed_folder(args)
         (saved,) = saved_specs(out / "units")
         spec = _distributed_spec(args, saved.params.as_dict(), {k: getattr(saved, k) for k in RUN_DEFAULTS},
                                  saved.indices)

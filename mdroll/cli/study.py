@@ -9,7 +9,8 @@ from ..ensemble.lines import check_seed
 from ..errors import UsageError
 from ..studies import STUDIES, check_name, run_study
 from ..studies.report import format_table, write_page, write_study
-from .common import check_file_path, check_output, cluster_options, cluster_runner, output_dir, output_options, size_options
+from .common import (check_file_path, check_output, cluster_options, cluster_runner, device_option, output_dir,
+                     output_options, size_options)
 
 
 def add_parser(sub) -> None:
@@ -21,7 +22,7 @@ def add_parser(sub) -> None:
                  full="the thesis's ensembles: 300 realizations (chapters 4-5), 100 per point (chapter 6); GPU")
     p.add_argument("--test", dest="size", action="store_const", const="test", help="tiny ensembles (the test suite)")
     p.add_argument("--seed", type=int, default=0, help="master seed (default 0)")
-    p.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
+    device_option(p)
     p.add_argument("--page", help="report only: the Markdown page to write (default <folder>.md)")
     cluster_options(p)
     output_options(p)

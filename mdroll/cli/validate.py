@@ -9,7 +9,8 @@ from ..ensemble.lines import check_seed
 from ..experiments import provenance
 from ..validation import CHECKS, SIZES, EnsembleCache, run_checks, select
 from ..validation.report import format_table, write_junit, write_report
-from .common import check_file_path, check_output, cluster_options, cluster_runner, output_dir, output_options, size_options
+from .common import (check_file_path, check_output, cluster_options, cluster_runner, device_option, output_dir,
+                     output_options, size_options)
 
 
 def add_parser(sub) -> None:
@@ -24,7 +25,7 @@ def add_parser(sub) -> None:
     p.add_argument("--installed", action="store_true",
                    help="also run the checks of installed packages (entry-point group mdroll.checks)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
+    device_option(p)
     p.add_argument("--cache-dir", metavar="DIR", help="ensemble cache (default $MDROLL_CACHE_DIR, else "
                    "~/.cache/mdroll/ensembles)")
     p.add_argument("--no-cache", action="store_true", help="neither read nor write the ensemble cache")

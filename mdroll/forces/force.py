@@ -11,7 +11,8 @@ import math
 
 import numpy as np
 
-from ..arguments import check_choice, check_params, check_positive, check_real, check_tree_options
+from ..arguments import check_choice, check_params, check_tree_options
+from ..checks import check_positive, check_real
 from ..devices import device_of, resolve_device, to_warp, warp
 from ..errors import ParameterError
 from ..params import Params

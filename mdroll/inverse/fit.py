@@ -55,7 +55,7 @@ def fit(spectrum: Spectrum, known: dict | None = None, free=None, band=None, pas
     start : starting values for some free parameters (SI), instead of the data-driven ones.
     profile : compute the profile likelihood of each free parameter (``profile_points`` each).
     correction : "simulated" (the default for a spectrum that carries its simulation's settings,
-        an mdroll one): the closed form times the ratio r(q) that simulations at the estimate
+        an mdroll one, on the rigid rail; not allowed on a known track, whose default is "none"): the closed form times the ratio r(q) that simulations at the estimate
         measure (:mod:`mdroll.inverse.correction`), iterated, with r's uncertainty in the
         intervals; "none" (the default for a table): the closed form alone; or a
         :class:`~mdroll.inverse.forward_model.Correction` to hold fixed (e.g.
@@ -211,8 +211,12 @@ def _check_arguments(spectrum, known, free, passes, bin, correction_passes) -> N
 
 
 def _correction_mode(correction, spectrum: Spectrum) -> str:
+    if spectrum.known_track is not None and correction is not None and not isinstance(correction, Correction) \
+            and correction == "simulated":
+        raise ParameterError("correction = 'simulated' is not allowed on a known track: its ensembles roll on the rigid "
+                             "rail; use 'none' (the linear chain, for roughness small against d0)")
     if correction is None:
-        return "simulated" if spectrum.simulation else "none"
+        return "simulated" if spectrum.simulation and spectrum.known_track is None else "none"
     if isinstance(correction, Correction):
         return "fixed"
     if correction not in ("simulated", "none"):
