@@ -31,10 +31,14 @@ def check_choice(name: str, value, allowed) -> str:
     return value
 
 
-def check_integer(name: str, value, minimum: int, unit: str = "") -> int:
-    """``value`` as an int if it is an integer (not a bool) >= ``minimum``."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < minimum:
-        allowed = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
+def check_integer(name: str, value, minimum: int, unit: str = "", maximum: int | None = None) -> int:
+    """``value`` as an int if it is an integer (not a bool) >= ``minimum`` (and <= ``maximum``)."""
+    if (isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < minimum
+            or (maximum is not None and value > maximum)):
+        if maximum is not None:
+            allowed = f"an integer from {minimum} to {maximum}"
+        else:
+            allowed = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
         raise ParameterError(f"{name} = {value!r} is not allowed: it must be {allowed}{f' ({unit})' if unit else ''}")
     return int(value)
 

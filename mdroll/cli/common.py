@@ -88,10 +88,11 @@ def cluster_options(p) -> None:
 
 
 @contextlib.contextmanager
-def cluster_runner(args, checkpoint=None):
+def cluster_runner(args):
     """The runner that ``--workers``/``--scheduler`` ask for (a :class:`mdroll.distributed.DaskRunner`
-    for ``run_specs(..., runner=)``), or None to run in this process; and the device the
-    ensembles then run on (a local cluster pins one worker to each GPU, which it sees as cuda:0)."""
+    for ``run_specs(..., runner=)``; set its ``checkpoint`` to keep the units), or None to run in
+    this process; and the device the ensembles then run on (a local cluster pins one worker to
+    each GPU, which it sees as cuda:0)."""
     if args.workers is None and args.scheduler is None:
         yield None, args.device
         return
@@ -106,7 +107,7 @@ def cluster_runner(args, checkpoint=None):
 
     device = args.device if args.scheduler is not None or args.device == "cpu" else "auto"
     with connect(args.workers, args.scheduler, args.device, getattr(args, "verbose", False)) as client:
-        yield DaskRunner(client, checkpoint=checkpoint), device
+        yield DaskRunner(client), device
 
 
 def progress_printer(args):
@@ -225,10 +226,8 @@ def output_dir(args, clear: tuple[str, ...] = ()) -> Path:
     started in the same second never share it)."""
     if args.out:
         out = Path(args.out)
-        check_directory_path(out, "--out")
+        check_output(args)
         _make_directory(out, "--out", exist_ok=True)
-        if any(entry.name != LOCK for entry in out.iterdir()) and not args.force:
-            raise UsageError(f"output directory {str(out)!r} exists and is not empty; use --force to write into it")
         lock(out, "--out")
         for name in clear:
             (out / name).unlink(missing_ok=True)
@@ -248,6 +247,17 @@ def output_dir(args, clear: tuple[str, ...] = ()) -> Path:
         lock(out, "output directory")
         return out
     raise UsageError(f"output directory: no free name under {str(base)!r}")  # pragma: no cover - 2^24 names a pid
+
+
+def check_output(args) -> None:
+    """``--out`` checked as :func:`output_dir` checks it, making nothing: for a command that makes
+    its folder only once it has something to write (a bad input then leaves nothing behind)."""
+    if not args.out:
+        return
+    out = Path(args.out)
+    check_directory_path(out, "--out")
+    if out.is_dir() and any(entry.name != LOCK for entry in out.iterdir()) and not args.force:
+        raise UsageError(f"output directory {str(out)!r} exists and is not empty; use --force to write into it")
 
 
 def check_directory_path(path: Path, option: str) -> None:

@@ -3,11 +3,10 @@ filter beside CNOSSOS-EU, and measured profiles (docs/roughness.md)."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from ..devices import resolve_device
+from ..ensemble.lines import check_seed
 from ..errors import UsageError
-from .common import Parser, check_directory_path, device_option, output_dir, output_options, size_options
+from .common import Parser, check_output, device_option, output_dir, output_options, size_options
 
 
 def add_parser(sub) -> None:
@@ -42,13 +41,13 @@ def execute(args) -> int:
         unknown = RAILWAY_STUDIES.unknown(args.only or ())
         if unknown:
             raise UsageError(f"--only: unknown study(ies) {unknown}; valid ones are: {', '.join(RAILWAY_STUDIES)}")
+        check_seed(args.seed)
         device = resolve_device(args.device)
         passed = tasks.check(args.size or "quick", args.seed, device, output_dir(args), args.only)
         return 0 if passed else 1
     if args.task == "filter":
         tasks.contact_filter(output_dir(args))
         return 0
-    if args.out:
-        check_directory_path(Path(args.out), "--out")
+    check_output(args)
     tasks.profile(args.file, args.dx, args.segment, lambda: output_dir(args))
     return 0

@@ -16,7 +16,7 @@ from ..forces.registry import (ALGORITHMS, DEFAULT_ALGORITHMS, REGISTRY, algorit
                                default_algorithm)
 from ..ensemble.batching import check_count_fits, check_run_fits, realization_bytes
 from ..ensemble.checkpoint import CHECKPOINT, read_checkpoint
-from ..ensemble.lines import check_seed
+from ..ensemble.lines import MAX_INDEX, check_seed
 from ..ensemble.pipeline import run_ensemble
 from ..ensemble.realizations import DEFAULT_REALIZATIONS
 from ..ensemble.result import result_summary
@@ -25,8 +25,8 @@ from ..ensemble.validity import parameter_concerns, result_concerns
 from ..errors import SchedulerLost, UsageError
 from ..files import atomic_write, remove_stale_temporaries
 from ..railway.report import write_band_outputs
-from .common import (build_params, build_structures, cluster_options, cluster_runner, device_option, format_value, lock,
-                     output_dir, output_options, param_options)
+from .common import (build_params, build_structures, check_output, cluster_options, cluster_runner, device_option,
+                     format_value, lock, output_dir, output_options, param_options)
 
 #: What ``run`` and ``merge`` write; ``--force`` removes the old ones first, so that a finished
 #: run's files never mix with a new run's.
@@ -94,9 +94,9 @@ def execute(args) -> int:
             raise UsageError(f"--memory-limit {args.memory_limit:g} GiB is too small: one realization of "
                              f"{params.n_points} springs needs {need / 2**30:.3g} GiB (a batch gets half the limit)")
     check_run_fits(params, device, memory)
+    track, wheel = build_structures(args)
     if not args.resume:
         out = output_dir(args, clear=RUN_OUTPUTS + (CHECKPOINT,))
-    track, wheel = build_structures(args)
     for name in RUN_OUTPUTS + (CHECKPOINT,):  # the directory is locked: no other writer
         remove_stale_temporaries(out / name)
     result = run_ensemble(params, realizations=realizations, device=device, batch=args.batch,
@@ -135,8 +135,11 @@ def _run_distributed(args) -> int:
         lock(out, "--resume")
     else:
         spec = _distributed_spec(args, None, RUN_DEFAULTS, None)
-        out = output_dir(args, clear=RUN_OUTPUTS)
-    with cluster_runner(args, checkpoint=out / "units") as (runner, device):
+        check_output(args)
+    with cluster_runner(args) as (runner, device):
+        if not args.resume:  # made once the cluster answers: a bad address leaves no folder
+            out = output_dir(args, clear=RUN_OUTPUTS)
+        runner.checkpoint = (out / "units").absolute()
         try:
             (result,) = runner.run_specs([spec], device=device, progress=not args.no_progress)
         except SchedulerLost as exc:
@@ -192,8 +195,8 @@ def _realizations(args, count: int | None) -> range:
     None) from ``--first``."""
     count = DEFAULT_REALIZATIONS if count is None else count
     first = args.first or 0
-    if first < 0:
-        raise UsageError(f"--first {first}: the first realization index must be >= 0")
+    if not 0 <= first <= MAX_INDEX - max(count, 1) + 1:
+        raise UsageError(f"--first {first}: the realization indices must lie in 0 .. {MAX_INDEX} (2^63 - 1)")
     check_count_fits(count)
     return range(first, first + count)
 

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..arguments import check_integer
 from ..ensemble.result import EnsembleResult
 from ..ensemble.vibration import structures_of
 from ..files import atomic_write
@@ -104,10 +105,8 @@ class Spectrum:
                 raise ParameterError(f"stderr must have the PSD's shape {omega.shape}, got {err.shape}")
             _check_values("stderr", err, omega)
             object.__setattr__(self, "stderr", err)
-        if self.passes is not None and (isinstance(self.passes, bool) or not isinstance(self.passes, (int, np.integer))
-                                        or self.passes < 1):
-            raise ParameterError(f"passes = {self.passes!r} is not allowed: the number of averaged passes must be a "
-                                 "positive integer")
+        if self.passes is not None:
+            check_integer("passes", self.passes, 1, "averaged passes", MAX_PASSES)
         for name in ("v0", "dt", "line_length"):
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value > 0):
@@ -158,6 +157,8 @@ def from_result(result, quantity: str = "accel", window: bool | None = None) -> 
     (a file from before the window was recorded: no window). ``unresolved`` holds the bins the
     record cannot resolve (:mod:`mdroll.ensemble.resolution`).
     """
+    if not isinstance(result, EnsembleResult):
+        raise ParameterError(f"result must be an mdroll.EnsembleResult, got {type(result).__name__}")
     if window is None:
         window = bool(result.window)
     _choice("quantity", quantity, QUANTITIES)
@@ -267,9 +268,10 @@ def read_table(path, quantity: str = "accel", frequency_unit: str | None = None,
         raise ParameterError(f"{path}: declares quantity {declared['quantity']!r}, but {quantity!r} was asked for")
     quantity = quantity or declared.get("quantity", "accel")
     passes = passes if passes is not None else declared.get("passes")
-    if passes is not None and (isinstance(passes, bool) or not float(passes).is_integer() or passes < 1):
-        raise ParameterError(f"{path}: passes = {passes!r} is not allowed: the number of averaged passes must be a "
-                             "positive integer")
+    if passes is not None and (isinstance(passes, bool) or not float(passes).is_integer()
+                               or not 1 <= passes <= MAX_PASSES):
+        raise ParameterError(f"{path}: passes = {passes!r} is not allowed: the number of averaged passes must be an "
+                             f"integer from 1 to {MAX_PASSES}")
     for name, value, allowed in (("frequency_unit", frequency_unit, FREQUENCY_UNITS), ("sided", sided, SIDES),
                                  ("density", density, DENSITIES)):
         if value is None:
@@ -280,6 +282,9 @@ def read_table(path, quantity: str = "accel", frequency_unit: str | None = None,
                           passes=None if passes is None else int(passes), window=window, source=str(path))
 
 
+#: The most averaged passes K a spectrum may declare: more than any measurement campaign holds, and
+#: what a bootstrap replicate or a correction ensemble simulates at most.
+MAX_PASSES = 100_000
 #: The largest table a fit reads (rows): a spectrum's bins, far more than any measured one has.
 MAX_TABLE_ROWS = 1_000_000
 #: The declared conventions an NPZ table may hold, each a text, and ``passes`` a number.
