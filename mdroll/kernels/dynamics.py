@@ -12,7 +12,7 @@ whether it explains the thesis's Figure 11 (mdroll study coupling); every amplit
 ``sqrt(1 + (omega dt)^2)`` a step under it.
 
 :func:`coupled_dynamics` makes the kernel of one force algorithm from its lane force and its
-row set-up (its ``wp.func``\ s), compiled apart (``wp.static``): each algorithm's kernel module
+row set-up (``wp.func`` functions), compiled apart (``wp.static``): each algorithm's kernel module
 declares its own. The contact point is a compile-time choice of the same kernel: the rigid rail
 of eq 13, or a modal state space (:class:`Modes`) stepped with the wheel (:func:`coupled_track`).
 """
@@ -22,7 +22,7 @@ from typing import Any
 import warp as wp
 
 from .common import Contact
-from .intrinsics import warp_sum_float, warp_sum_float_pair
+from .intrinsics import row_address, store_float, warp_sum_float, warp_sum_float_pair
 
 #: Lanes sharing one realization in the coupled dynamics on CUDA: one whole warp, so that a step's
 #: sum is a butterfly of warp shuffles. Warp runs tiles with one thread on the CPU: one lane there.
@@ -160,6 +160,8 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
             return
         lane = thread % lanes
         row = wp.static(row_setup)(lines, r, contact)
+        forces = row_address(force, r)
+        accels = row_address(accel, r)
         d_w = d_start
         v = wp.float64(0.0)
         y = wp.float64(0.0)  # the contact point's displacement (m), modal variant
@@ -178,8 +180,8 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
                 F = warp_sum_float(part)
             a = (F_N - F) * inv_mass
             if lane == 0:
-                force[r, s] = F - force_offset
-                accel[r, s] = a
+                store_float(forces, s, F - force_offset)
+                store_float(accels, s, a)
             if wp.static(forward_euler):
                 d_w += dt * v  # the old velocity (the thesis's scheme)
                 v += dt * a

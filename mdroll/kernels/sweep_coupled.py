@@ -127,8 +127,8 @@ def settled_reaches(row: BandRow, d: wp.float64, curvature: wp.float64) -> BandR
 @wp.func
 def prefetch_ahead(row: BandRow, c: int, lane: int):
     """Lane 0 asks the L1 cache for the height and the prefix sum :data:`PREFETCH_AHEAD`
-    springs ahead of spring c; nothing on the CPU."""
-    if lane == 0:
+    springs ahead of spring c, every 16th spring (a cache line of each); nothing on the CPU."""
+    if lane == 0 and (c & 15) == 0:
         i = wp.min(c + PREFETCH_AHEAD, row.n - 1)
         prefetch_float_near(row.h, i)
         prefetch_float_near(row.prefix, i)
@@ -225,18 +225,32 @@ def sweep_row(lines: SweepLines, r: int, contact: Contact) -> BandRow:
 
 
 @wp.func
+def lane_band_force(row: BandRow, c: int, d: wp.float64, contact: Contact, lane: int, lanes: int):
+    """This lane's part (N) of F (:func:`banded_force`) and the row with this step's reaches
+    (:func:`settled_reaches`). The part is first summed with last step's reaches, whose loads
+    need no d and so go out at the step's start; in the rare step where a reach moves it is
+    summed again with the new ones."""
+    part = wp.float64(0.0)
+    if row.outer >= 0:
+        part = banded_force(row, c, d, contact, lane, lanes)
+    settled = settled_reaches(row, d, contact.curvature)
+    if settled.core != row.core or settled.outer != row.outer:
+        part = wp.float64(0.0)
+        if settled.outer >= 0:
+            part = banded_force(settled, c, d, contact, lane, lanes)
+    return part, settled
+
+
+@wp.func
 def sweep_lane_force(lines: SweepLines, row: BandRow, c: int, d: wp.float64, contact: Contact, lane: int,
                      lanes: int):
     """This lane's part (N) of F (eq 11-12) with the wheel at spring c of the row, indentation d
     (m), for the coupled dynamics, where d changes every step and no totals carry over: the
-    core in closed form and the bands spring by spring (:func:`banded_force`). O(band) a step:
-    ~44 springs a side at the thesis's defaults, growing as 1 / dx under refinement. Returns
-    the part and the row with this step's reaches."""
+    core in closed form and the bands spring by spring (:func:`lane_band_force`). O(band) a
+    step: ~44 springs a side at the thesis's defaults, growing as 1 / dx under refinement.
+    Returns the part and the row with this step's reaches."""
     prefetch_ahead(row, c, lane)
-    settled = settled_reaches(row, d, contact.curvature)
-    if settled.outer < 0:
-        return wp.float64(0.0), settled
-    return banded_force(settled, c, d, contact, lane, lanes), settled
+    return lane_band_force(row, c, d, contact, lane, lanes)
 
 
 #: Eq 13 with the sweep's coupled step (:func:`mdroll.kernels.dynamics.coupled_dynamics`).

@@ -55,7 +55,7 @@ from .common import (
     tree_stack,
 )
 from .dynamics import coupled_dynamics
-from .sweep_coupled import BandRow, band_row, banded_force, prefetch_ahead, settled_reaches
+from .sweep_coupled import BandRow, band_row, lane_band_force, prefetch_ahead, settled_reaches
 
 #: Nodes are pushed as ``(index << LEVEL_BITS) | level`` (levels < 2^LEVEL_BITS = 32).
 LEVEL_BITS = wp.constant(5)
@@ -489,16 +489,14 @@ def tree_row(lines: TreeLines, r: int, contact: Contact) -> BandRow:
 def tree_lane_force(lines: TreeLines, row: BandRow, c: int, d: wp.float64, contact: Contact, lane: int, lanes: int):
     """This lane's part (N) of F (eq 11-12) with the wheel at spring c of the row, indentation d
     (m), and the row with this step's reaches. As the main kernel, by the band's width from the
-    root bounds: up to ``band_limit`` springs a side, the core in closed form and the bands
-    spring by spring (:func:`banded_force`, the sweep's coupled step, its springs prefetched);
-    wider, lane 0 the core and each lane its slice of the bands by traversal
-    (:func:`force_tree`)."""
+    root bounds (last step's, the choice being one of speed only): up to ``band_limit`` springs
+    a side, the core in closed form and the bands spring by spring (:func:`lane_band_force`, the
+    sweep's coupled step, its springs prefetched); wider, lane 0 the core and each lane its
+    slice of the bands by traversal (:func:`force_tree`)."""
     prefetch_ahead(row, c, lane)
+    if row.outer - wp.max(row.core, 0) <= lines.band_limit:
+        return lane_band_force(row, c, d, contact, lane, lanes)
     settled = settled_reaches(row, d, contact.curvature)
-    if settled.outer < 0:
-        return wp.float64(0.0), settled
-    if settled.outer - wp.max(settled.core, 0) <= lines.band_limit:
-        return banded_force(settled, c, d, contact, lane, lanes), settled
     return contact.k_spring * force_tree(lines.h, lines.prefix, lines.nodes, lines.level_offsets, lines.top_level,
                                          lines.leaf_size, row.r, lines.n, c, d, contact.curvature, lane,
                                          lanes), settled
