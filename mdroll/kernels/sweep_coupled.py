@@ -226,19 +226,12 @@ def sweep_row(lines: SweepLines, r: int, contact: Contact) -> BandRow:
 
 @wp.func
 def lane_band_force(row: BandRow, c: int, d: wp.float64, contact: Contact, lane: int, lanes: int):
-    """This lane's part (N) of F (:func:`banded_force`) and the row with this step's reaches
-    (:func:`settled_reaches`). The part is first summed with last step's reaches, whose loads
-    need no d and so go out at the step's start; in the rare step where a reach moves it is
-    summed again with the new ones."""
-    part = wp.float64(0.0)
-    if row.outer >= 0:
-        part = banded_force(row, c, d, contact, lane, lanes)
+    """This lane's part (N) of F (:func:`banded_force`) at this step's reaches, and the row with
+    them (:func:`settled_reaches`)."""
     settled = settled_reaches(row, d, contact.curvature)
-    if settled.core != row.core or settled.outer != row.outer:
-        part = wp.float64(0.0)
-        if settled.outer >= 0:
-            part = banded_force(settled, c, d, contact, lane, lanes)
-    return part, settled
+    if settled.outer < 0:
+        return wp.float64(0.0), settled
+    return banded_force(settled, c, d, contact, lane, lanes), settled
 
 
 @wp.func
