@@ -1,8 +1,8 @@
 """Ensembles on Dask distributed: many specs, many workers, one answer.
 
 A list of :class:`~mdroll.ensemble.spec.EnsembleSpec` is cut into *work units* (a spec's slice of
-consecutive realizations, :meth:`EnsembleSpec.split`) of whole batches of the workers' devices
-(:func:`default_unit_size`). Each unit runs as one Dask task on a worker, on that worker's device,
+consecutive realizations, :meth:`EnsembleSpec.split`), by default a worker's whole share, run in
+batches sized to the smallest worker's device (:func:`default_unit_size`). Each unit runs as one Dask task on a worker, on that worker's device,
 and its :class:`~mdroll.ensemble.result.EnsembleResult` (per-bin mean PSDs and their standard
 errors, force sums, counts; never a per-realization series) stays on that worker. When all are
 done, each worker merges its units of each spec, the workers' partial results are merged in pairs
@@ -48,10 +48,6 @@ from .errors import ParameterError, SchedulerLost
 # Dask's ``distributed`` is an optional dependency (the ``distributed`` extra): the functions that
 # need it import it, so that this module imports without it.
 
-#: Work units per worker at most: two give a worker's second unit to a faster or surviving worker
-#: and lose at most half a worker's share when it dies, while the per-unit cost stays small
-#: against a unit of whole batches (docs/distributed.md, "Where the time goes").
-UNITS_PER_WORKER = 2
 #: A local cluster listens on the loopback interface only: it serves no one outside this machine.
 LOOPBACK = "127.0.0.1"
 #: The file of a checkpoint directory that names its run's specs and unit sizes.
@@ -79,13 +75,13 @@ def work_units(specs: Sequence[EnsembleSpec], sizes: int | Sequence[int]) -> lis
     return [WorkUnit(i, part) for i, (spec, size) in enumerate(zip(specs, sizes)) for part in spec.split(size)]
 
 
-def default_unit_size(total: int, workers: int, batch: int) -> int:
-    """Realizations per unit for ``total`` realizations on ``workers`` workers whose devices run
-    ``batch`` realizations at once: each worker's share in whole batches, in at most
-    :data:`UNITS_PER_WORKER` equal units (one unit, one batch, when the share fits a batch)."""
-    share = -(-total // max(1, workers))
-    batches = -(-share // max(1, batch))
-    return max(1, -(-share // min(UNITS_PER_WORKER, batches)))
+def default_unit_size(total: int, workers: int) -> int:
+    """Realizations per unit for ``total`` realizations on ``workers`` workers: one unit a worker,
+    its whole share, which its device runs in as few batches as its memory allows. A second unit
+    a worker would let a faster worker take it, but costs a unit's start and a merge of host
+    NumPy over every bin (0.1 s at 2^20 springs) more than it balances between equal GPUs
+    (docs/distributed.md, "Measured"); a cluster of unequal devices passes ``unit_size``."""
+    return max(1, -(-total // max(1, workers)))
 
 
 def worker_batches(specs: Sequence[EnsembleSpec], device: str, options: dict, checkpoint: str | None) -> list[int]:
@@ -114,9 +110,11 @@ def run_unit(spec: EnsembleSpec, device: str, options: dict, checkpoint: str | N
 
 
 def merge_results(*results: EnsembleResult) -> EnsembleResult:
-    """One result of several of one spec (:meth:`EnsembleResult.merge`; one result is itself):
-    the reduction's task on the workers, and its last step on the client."""
-    return results[0] if len(results) == 1 else EnsembleResult.merge(list(results))
+    """One result of several of one spec (:meth:`EnsembleResult.merge_own`: the units' results
+    are the runner's own, made by :func:`run_unit` or read back from its checkpoint by
+    :meth:`EnsembleResult.load`, which checks them; one result is itself): the reduction's task
+    on the workers, and its last step on the client."""
+    return results[0] if len(results) == 1 else EnsembleResult.merge_own(list(results))
 
 
 class DaskRunner:
@@ -128,7 +126,7 @@ class DaskRunner:
     client : dask.distributed.Client
         The cluster's client (:func:`local_cluster`, or ``Client("tcp://host:8786")``).
     unit_size : int, optional
-        Realizations per work unit; default :func:`default_unit_size` from the workers' batches.
+        Realizations per work unit; default :func:`default_unit_size`, a worker's share.
     checkpoint : path, optional
         A directory that receives every finished unit (resumable); the workers write it, so on
         several machines it must be on a shared file system.
@@ -147,7 +145,7 @@ class DaskRunner:
 
     def run_specs(self, specs: Iterable[EnsembleSpec], device: str = "auto", progress: bool = False,
                   **options) -> list[EnsembleResult]:
-        """Every spec's result (see the module docstring): units of whole batches run on the
+        """Every spec's result (see the module docstring): units of a worker's share run on the
         workers, reduced there, and shipped to the client once per worker and spec."""
         from distributed import as_completed
 
@@ -159,7 +157,7 @@ class DaskRunner:
             saved = None if self.checkpoint is None else self._manifest(specs)
             batches = self._batches(specs, device, options, checkpoint, run)
             total = sum(s.realizations for s in specs)
-            sizes = saved or [self.unit_size or default_unit_size(total, self.workers(), b) for b in batches]
+            sizes = saved or [self.unit_size or default_unit_size(total, self.workers())] * len(specs)
             if self.checkpoint is not None and saved is None:
                 self._manifest(specs, sizes)
             units = work_units(specs, sizes)

@@ -71,12 +71,12 @@ def test_units_are_whole_batches_and_cover_each_realization_once():
     units = work_units(specs(), 2)
     assert [u.uid for u in units] == ["0-3-2", "0-5-2", "0-7-1", "1-0-2", "1-2-1"]
     assert [u.uid for u in work_units(specs(), [5, 1])] == ["0-3-5", "1-0-1", "1-1-1", "1-2-1"]
-    # a worker's share in whole batches, at most two units a worker, one when the share fits a batch
-    assert default_unit_size(1200, workers=2, batch=300) == 300   # 600 a worker: 2 batches, 2 units
-    assert default_unit_size(1200, workers=2, batch=1000) == 600  # one batch holds a worker's share
-    assert default_unit_size(6000, workers=2, batch=400) == 1500  # 8 batches a worker, in 2 units
-    assert default_unit_size(1200, workers=1, batch=300) == 600
-    assert default_unit_size(3, workers=4, batch=10) == 1
+    # one unit a worker: its whole share
+    assert default_unit_size(1200, workers=2) == 600
+    assert default_unit_size(1201, workers=2) == 601
+    assert default_unit_size(6000, workers=4) == 1500
+    assert default_unit_size(1200, workers=1) == 1200
+    assert default_unit_size(3, workers=4) == 1
     with pytest.raises(ParameterError, match="unit_size"):
         DaskRunner(client=None, unit_size=0)
     with pytest.raises(ParameterError, match="workers"):
