@@ -1,33 +1,39 @@
-"""Speed of the boundary-element reference (mdroll.bem): one solve of an n x n rough contact, and a
-rolling ensemble of B realizations x P positions, on one device; JSON with the environment.
+"""Speed of the boundary-element reference (mdroll.bem) against its floor: one solve of an n x n rough
+contact (NumPy, and on CUDA the fused solver alone and batched, and the unfused CuPy iteration), the
+floor measured on the device (one batched padded convolution, a device-to-device copy), and a rolling
+ensemble of B realizations x P positions; JSON with the environment and the commit.
 
-    python benchmarks/bem_speed.py --device cuda:0 --out bem.json            # n 256, B 64, P 2000
+    python benchmarks/bem_speed.py --device cuda:0 --cpu-reference --out bem.json     # n 256, B 64, P 2000
     python benchmarks/bem_speed.py --device cpu --n 64 --batch 2 --positions 10 --out bem-cpu.json
 
 The problem: a wheel (R 0.5 m) on steel (E* from E 210 GPa, nu 0.3) at its Hertz approach for 40 kN
 (displacement control, the decoupled mode; --control load for load control), the grid 1.25 x the
 Hertz contact diameter, a self-affine isotropic surface (H 0.7, q_min 2 pi / 5 mm, RMS 0.5 um).
-With --reference the single solve is also timed in ContactMechanics (if installed) on the same
-problem. docs/bem.md counts the floor these times are to be read against.
+With --reference the single solve is also timed in ContactMechanics (if installed) on the same problem.
+The single solves use the default tolerance, the rolling run --tol. docs/bem.md reads these numbers
+against the floor.
 """
 
 import argparse
 import json
 import math
+import statistics
+import subprocess
 import time
+from types import SimpleNamespace
 
 import numpy as np
 
 from mdroll import physics
 from mdroll.bem import roll, self_affine, solve
-from mdroll.bem.solver import indenter_gap
+from mdroll.bem.halfspace import HalfSpace
+from mdroll.bem.solver import TOLERANCE, constrained_cg, indenter_gap, initial_pressure
 from mdroll.provenance import environment
 
 E_STAR = physics.effective_modulus(210e9, 0.3)
 RADIUS = 0.5
 LOAD = 40e3
-#: bytes of one FFT pass over the padded grid per surface: the (2n, n + 1) complex half spectrum
-COMPLEX_BYTES = 16
+REPEATS = 5
 
 
 def problem(n, realizations, length):
@@ -39,35 +45,60 @@ def problem(n, realizations, length):
     return dx, d0, surfaces
 
 
-def timed(call, warmup):
-    """(seconds, result) of ``call()`` after ``warmup()``, a small run of the same shapes (FFT plans,
-    CuPy's kernels). The results come back on the host, so the clock includes the device's work."""
-    warmup()
-    start = time.perf_counter()
+def median_seconds(call, repeats):
+    """(median seconds, last result) of ``call()`` after one untimed call (FFT plans, kernels). Every
+    call returns results on the host, so the clock includes the device's work."""
     result = call()
-    return time.perf_counter() - start, result
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        result = call()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times), result
 
 
 def control(args, d0):
     return {"approach": d0} if args.control == "approach" else {"load": LOAD}
 
 
-def single_solve(args):
-    dx, d0, surfaces = problem(args.n, 1, args.n)
-    heights = surfaces[0]
-    def call():
-        return solve(heights, dx, RADIUS, E_star=E_STAR, device=args.device, **control(args, d0))
+def record_of(seconds, result, batch=1):
+    iterations = np.asarray(result.iterations)
+    return {"seconds": seconds, "seconds_per_solve": seconds / batch, "iterations": iterations.tolist(),
+            "seconds_per_iteration_and_surface": seconds / float(iterations.max()) / batch,
+            "force": np.asarray(result.force).tolist()}
 
-    seconds, result = timed(call, call)
-    # two padded FFTs per convolution, two convolutions per iteration, one more to start from the overlap
-    passes = 4 * int(result.iterations) + (2 if args.control == "approach" else 0)
-    record = {"n": args.n, "dx": dx, "seconds": seconds, "iterations": int(result.iterations),
-              "force": result.force, "area": result.area, "fft_passes": passes,
-              "bytes_per_pass": COMPLEX_BYTES * 2 * args.n * (args.n + 1),
-              "seconds_per_iteration": seconds / int(result.iterations)}
+
+def single_solves(args):
+    """One n^2 solve: NumPy (device cpu or --cpu-reference), fused CUDA alone and in a batch of B
+    different surfaces, and the unfused CuPy iteration on the same surface."""
+    dx, d0, surfaces = problem(args.n, args.batch, args.n)
+    kw = dict(E_star=E_STAR, **control(args, d0))
+    out = {"n": args.n, "dx": dx}
+    if args.device == "cpu" or args.cpu_reference:
+        out["numpy"] = record_of(*median_seconds(lambda: solve(surfaces[0], dx, RADIUS, **kw), 1))
     if args.reference:
-        record["reference"] = contactmechanics_solve(heights, dx, d0, result.force)
-    return record
+        out["reference"] = contactmechanics_solve(surfaces[0], dx, d0, solve(surfaces[0], dx, RADIUS, **kw).force)
+    if args.device == "cpu":
+        return out
+    import cupy
+
+    out["fused"] = record_of(*median_seconds(lambda: solve(surfaces[0], dx, RADIUS, device=args.device, **kw),
+                                             REPEATS))
+    out["fused_batch"] = record_of(*median_seconds(
+        lambda: solve(surfaces, dx, RADIUS, device=args.device, **kw), REPEATS), args.batch)
+    with cupy.cuda.Device(int(args.device.partition(":")[2] or 0)):
+        op = HalfSpace(args.n, dx, E_STAR, xp=cupy)
+        separation = cupy.asarray(indenter_gap(args.n, dx, RADIUS, RADIUS) - surfaces[:1])
+        target = np.array([d0 if args.control == "approach" else LOAD])
+        load = args.control == "load"
+
+        def unfused():
+            start = initial_pressure(op, separation, target, load, RADIUS)
+            p, _, iterations, _ = constrained_cg(op, separation, target, load, start, TOLERANCE, 2000)
+            return SimpleNamespace(force=float(p.sum()) * dx * dx, iterations=int(iterations[0]))
+
+        out["unfused"] = record_of(*median_seconds(unfused, 1))
+    return out
 
 
 def contactmechanics_solve(heights, dx, d0, force):
@@ -88,35 +119,98 @@ def contactmechanics_solve(heights, dx, d0, force):
     return {"seconds": seconds, "iterations": int(result.nit), "force": theirs, "force_ratio": force / theirs}
 
 
-def rolling_ensemble(args):
-    dx, d0, surfaces = problem(args.n, args.batch, args.n + args.positions - 1)
-    def call(steps):
-        return roll(surfaces, dx, RADIUS, E_star=E_STAR, steps=steps, device=args.device, **control(args, d0))
+def floor(args):
+    """The floor measured on the device: a batched padded convolution (2 per iteration) of B surfaces,
+    and the copy bandwidth for the element-wise passes (read + write bytes over time)."""
+    import cupy
 
-    seconds, result = timed(lambda: call(args.positions), lambda: call(2))
+    from mdroll.bem.fused import FusedCG
+
+    n, batch = args.n, args.batch
+    op = HalfSpace(n, 1e-5, E_STAR, xp=cupy)
+    solver = FusedCG(op, batch, False)
+    solver.p[:, :n, :n] = cupy.random.default_rng(1).random((batch, n, n))
+    start, end = cupy.cuda.Event(), cupy.cuda.Event()
+    with solver.stream:
+        solver.convolve(solver.p, solver.u)
+        start.record()
+        for _ in range(20):
+            solver.convolve(solver.p, solver.u)
+        end.record()
+    end.synchronize()
+    convolution = cupy.cuda.get_elapsed_time(start, end) / 1e3 / 20
+    source = cupy.random.default_rng(2).random(2**25)
+    target = cupy.empty_like(source)
+    cupy.copyto(target, source)
+    start.record()
+    for _ in range(10):
+        cupy.copyto(target, source)
+    end.record()
+    end.synchronize()
+    bandwidth = 2 * source.nbytes * 10 / (cupy.cuda.get_elapsed_time(start, end) / 1e3)
+    # element-wise traffic of one iteration per surface (displacement control), n x n float64 arrays
+    # read or written: gap_norm 3, direction 5, step_sums 5, update 5
+    elementwise = 18 * 8 * n * n
+    per_iteration = (2 * convolution / batch + elementwise / bandwidth)
+    return {"batch": batch, "convolution_seconds": convolution, "convolution_seconds_per_surface": convolution / batch,
+            "copy_bandwidth_bytes_per_second": bandwidth, "elementwise_bytes_per_iteration": elementwise,
+            "floor_seconds_per_iteration_and_surface": per_iteration}
+
+
+def rolling_ensemble(args):
+    """The rolling run; its time per iteration and surface counted over the slowest member at each
+    position (what a lockstep batch pays) and over every member's own iterations."""
+    dx, d0, surfaces = problem(args.n, args.batch, args.n + args.positions - 1)
+
+    def call(steps):
+        return roll(surfaces, dx, RADIUS, E_star=E_STAR, steps=steps, device=args.device, tol=args.tol,
+                    **control(args, d0))
+
+    call(2)
+    start = time.perf_counter()
+    result = call(args.positions)
+    seconds = time.perf_counter() - start
     iterations = result.iterations
-    return {"n": args.n, "batch": args.batch, "positions": args.positions, "seconds": seconds,
+    return {"n": args.n, "batch": args.batch, "positions": args.positions, "tol": args.tol, "seconds": seconds,
             "seconds_per_position": seconds / args.positions,
+            "seconds_per_iteration_and_surface": seconds / float(iterations.max(axis=0).sum()) / args.batch,
+            "seconds_per_member_iteration": seconds / float(iterations.sum()),
             "iterations_mean": float(iterations.mean()), "iterations_max": int(iterations.max()),
+            "iterations_slowest_member_mean": float(iterations.max(axis=0).mean()),
             "iterations_first_position": float(iterations[:, 0].mean()),
             "converged": bool(np.all(result.converged)),
             "force_mean": float(result.force.mean()), "force_std": float(result.force.std())}
+
+
+def commit():
+    try:
+        return subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--n", type=int, default=256, help="cells across the square window")
-    parser.add_argument("--batch", type=int, default=64, help="realizations rolled at once")
-    parser.add_argument("--positions", type=int, default=2000, help="rolling positions, one cell apart")
+    parser.add_argument("--batch", type=int, default=64, help="realizations solved or rolled at once")
+    parser.add_argument("--positions", type=int, default=2000, help="rolling positions, one cell apart (0: none)")
+    parser.add_argument("--tol", type=float, default=1e-8, help="tolerance of the rolling run")
     parser.add_argument("--control", choices=("approach", "load"), default="approach")
+    parser.add_argument("--cpu-reference", action="store_true", help="also time the NumPy solve on this host")
     parser.add_argument("--reference", action="store_true", help="also time ContactMechanics on the single solve")
+    parser.add_argument("--commit", default=None, help="commit of the code measured (default: git rev-parse HEAD)")
     parser.add_argument("--out", required=True)
     args = parser.parse_args(argv)
-    record = {"environment": environment(args.device), "control": args.control, "single": single_solve(args)}
+    record = {"environment": {**environment(args.device), "commit": args.commit or commit()},
+              "control": args.control, "single": single_solves(args)}
     print(json.dumps(record["single"]), flush=True)
-    record["rolling"] = rolling_ensemble(args)
-    print(json.dumps(record["rolling"]), flush=True)
+    if args.device != "cpu":
+        record["floor"] = floor(args)
+        print(json.dumps(record["floor"]), flush=True)
+    if args.positions:
+        record["rolling"] = rolling_ensemble(args)
+        print(json.dumps(record["rolling"]), flush=True)
     with open(args.out, "w") as out:
         json.dump(record, out, indent=1)
 

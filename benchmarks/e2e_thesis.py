@@ -26,11 +26,12 @@ def main() -> None:
                         help="measure this algorithm (repeatable, in order; default: every one, registry order)")
     args = parser.parse_args()
     device = resolve_device(args.device)
-    p = Params(L=5.24288, n_real=300)
-    record = {"environment": environment(device), "params": p.as_dict(), "end_to_end": {}, "runs": []}
+    p, count = Params(L=5.24288), 300
+    record = {"environment": environment(device), "params": p.as_dict(), "realizations": count, "end_to_end": {},
+              "runs": []}
     for algorithm in args.algorithm or ALGORITHMS:
         def run():
-            return run_ensemble(p, algorithm=algorithm, device=device, progress=False)
+            return run_ensemble(p, realizations=count, algorithm=algorithm, device=device, progress=False)
 
         run()
         total, times = timed(run, device, 3)

@@ -46,7 +46,7 @@ def main() -> None:
     args = parser.parse_args()
     device = resolve_device(args.device)
     p = Params(L=args.length)
-    record = {"environment": environment(device), "params": p.physical_dict(), "realizations": args.realizations,
+    record = {"environment": environment(device), "params": p.as_dict(), "realizations": args.realizations,
               "figures": {}}
     results = {}
     for name, window in ESTIMATORS.items():

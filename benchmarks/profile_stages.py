@@ -33,8 +33,8 @@ def main() -> None:
     device = resolve_device(args.device)
     import numpy as np
 
-    p = Params(L=5.24288, n_real=300)
-    idx = np.arange(p.n_real)
+    p = Params(L=5.24288)
+    idx = np.arange(300)
     times = {}
 
     def clock(name, fn):

@@ -50,10 +50,10 @@ def main() -> None:
     parser.add_argument("--out", default="sweep_stream.json")
     args = parser.parse_args()
     device = resolve_device(args.device)
-    p = Params(L=5.24288, n_real=300)
+    p, count = Params(L=5.24288), 300
     record = {"environment": environment(device), "thesis": {}}
-    record["thesis"]["edge_ms"] = force_time(p, "edge", p.n_real, device, args.repeats, "open")["force_s"] * 1e3
-    lines = to_warp(rough_lines(p, 0, p.n_real, device=device), device)
+    record["thesis"]["edge_ms"] = force_time(p, "edge", count, device, args.repeats, "open")["force_s"] * 1e3
+    lines = to_warp(rough_lines(p, 0, count, device=device), device)
     prepared = prepare_lines(lines, p, "sweep", "open", p.d0, device, h_max=H_BOUND_SIGMAS * p.h0)
     sequential_ms, _, reference = kernel_ms(prepared, p, device, args.repeats, "sequential")
     record["thesis"]["sequential_ms"] = sequential_ms

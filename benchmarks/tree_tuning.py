@@ -31,11 +31,11 @@ def main() -> None:
     parser.add_argument("--refinement-leaf-sizes", type=int, nargs="+", default=REFINEMENT_LEAF_SIZES)
     args = parser.parse_args()
     device = resolve_device(args.device)
-    thesis = Params(L=5.24288, n_real=300)
+    thesis, count = Params(L=5.24288), 300
     record = {"environment": environment(device), "thesis": [], "refinement": [], "fits": {}}
     for leaf_size in args.leaf_sizes:
         for band_limit in args.band_limits:
-            point = force_time(thesis, "tree", thesis.n_real, device, args.repeats, "open", leaf_size, band_limit)
+            point = force_time(thesis, "tree", count, device, args.repeats, "open", leaf_size, band_limit)
             record["thesis"].append(point)
             print(f"thesis leaf {leaf_size:>2} band_limit {band_limit:>7}: {point['force_s'] * 1e3:7.2f} ms", flush=True)
     sizes, realizations = SIZES["full"].sweeps(device)["refinement"]

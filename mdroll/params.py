@@ -42,7 +42,10 @@ TEXT_FIELDS = ("roughness", "roughness_table", "roughness_kind", "roughness_leve
 
 @dataclass(frozen=True)
 class Params:
-    """Every parameter of physics.md section 1, with the thesis defaults (Table 1, Appendix A).
+    """Every parameter of physics.md section 1, with the thesis defaults (Table 1, Appendix A):
+    the physics and the grid. How many realizations to average belongs to the run
+    (``run_ensemble(params, realizations=N)``); :func:`mdroll.ensemble.realizations.read_params`
+    reads a parameters dict that names it too.
 
     Attributes
     ----------
@@ -72,11 +75,6 @@ class Params:
     q_max : float or None
         Short-wave cutoff (rad/m), at most the Nyquist wavenumber pi/dx. ``None`` (default)
         means pi/dx.
-    n_real : int
-        Default number of realizations of a run (``run_ensemble(realizations=None)``, the CLI
-        without ``--realizations``). Default 300. A property of the run, not of the physics:
-        results, checkpoints and merges compare and store :meth:`physical_dict`, and a result
-        keeps its own count (``EnsembleResult.n_real``).
     roughness : str
         Roughness spectrum model (:mod:`mdroll.roughness`): ``"powerlaw"`` (default, eq 33 with
         hard cut-offs q_min, q_max), ``"rolloff"`` (eq 33 above ``q_r``, flat below it down to the
@@ -109,7 +107,6 @@ class Params:
     H: float = 0.7
     q_min: float = physics.TWO_PI / 5e-3
     q_max: float | None = field(default=None)
-    n_real: int = 300
     roughness: str = "powerlaw"
     q_r: float | None = None
     roughness_table: str = ""
@@ -167,8 +164,6 @@ class Params:
             raise ParameterError(
                 f"q_min = {self.q_min!r} rad/m is not allowed: it must be below q_max = {self.q_max:.6g} rad/m"
             )
-        if not isinstance(self.n_real, (int, np.integer)) or isinstance(self.n_real, bool) or self.n_real < 1:
-            raise ParameterError(f"n_real = {self.n_real!r} is not allowed: it must be a positive integer")
         if self.n_points < 2:
             raise ParameterError(f"L = {self.L!r} m is not allowed: it must hold at least two springs of dx = {self.dx!r} m")
         if self.omega_0 * self.dt >= 2.0:
@@ -376,11 +371,6 @@ class Params:
         """The fields as a plain dict (q_max resolved)."""
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
-    def physical_dict(self) -> dict:
-        """:meth:`as_dict` without the run's realization count ``n_real``: what makes two
-        ensembles the same physics (results, checkpoints and merges compare these)."""
-        return {name: value for name, value in self.as_dict().items() if name != "n_real"}
-
     def derived(self) -> dict:
         """Derived quantities as ``{name: (value, unit, description)}``."""
         return {
@@ -397,3 +387,4 @@ class Params:
             "springs_in_contact": (self.springs_in_contact, "-", "2a/dx"),
             "lambda_A": (self.lambda_A, "m^(2-2H)", "PSD prefactor (eq 50, discrete)"),
         }
+

@@ -125,6 +125,53 @@ def test_a_batch_is_its_members_solved_alone(device):
         assert alone.iterations == batch.iterations[i]
 
 
+def test_cuda_solver_equals_numpy(cuda_devices):
+    # the fused CUDA iteration is the NumPy one: same iterations, force and approach to rounding,
+    # under both controls, members converging at different iterations in one batch
+    if not cuda_devices:
+        pytest.skip("no CUDA device with CuPy")
+    n, dx = 40, 1.5e-4
+    stack = np.stack([_rough(n, dx, index=i) for i in range(3)])
+    for kwargs in ({"approach": np.array([10e-6, 15e-6, 20e-6])}, {"load": np.array([2e3, 5e3, 9e3])}):
+        host = solve(stack, dx, R, E_star=E_STAR, **kwargs)
+        for dev in cuda_devices:
+            fused = solve(stack, dx, R, E_star=E_STAR, device=dev, **kwargs)
+            np.testing.assert_allclose(fused.force, host.force, rtol=1e-10)
+            np.testing.assert_allclose(fused.approach, host.approach, rtol=1e-10)
+            np.testing.assert_allclose(fused.pressure, host.pressure, rtol=0, atol=1e-9 * host.pressure.max())
+            assert np.abs(fused.iterations - host.iterations).max() <= 1 and fused.converged.all()
+
+
+def test_cuda_rolling_equals_numpy(cuda_devices):
+    # each member moves on when it converged, on the device: the same solves as NumPy's position by
+    # position, through a valley where the second member loses contact and starts afresh
+    if not cuda_devices:
+        pytest.skip("no CUDA device with CuPy")
+    n, dx, steps = 24, 2e-4, 12
+    x = np.arange(n + steps - 1) * dx
+    valley = -30e-6 * np.exp(-(((x - x[n // 2 + 5]) / (9 * dx)) ** 8))
+    surfaces = np.stack([_rough(n + steps - 1, dx)[:, :n] * 0.3, extruded(valley, n)])
+    host = roll(surfaces, dx, R, E_star=E_STAR, approach=3e-6, steps=steps)
+    assert (host.force[1, 3:9] == 0).all() and (host.force[1, 9:] > 0).all()
+    for dev in cuda_devices:
+        fused = roll(surfaces, dx, R, E_star=E_STAR, approach=3e-6, steps=steps, device=dev)
+        np.testing.assert_allclose(fused.force, host.force, rtol=1e-10, atol=1e-12 * host.force.max())
+        np.testing.assert_allclose(fused.area, host.area, rtol=1e-12)
+        assert np.abs(fused.iterations - host.iterations).max() <= 1 and fused.converged.all()
+        np.testing.assert_allclose(fused.pressure, host.pressure, rtol=0, atol=1e-9 * host.pressure.max())
+
+
+def test_tolerance_bounds_the_force_error(device):
+    # the rolling runs' tolerance: the force within tol / 2 of a tight solve (docs/bem.md, Speed)
+    n, dx = 48, 1.5e-4
+    stack = np.stack([_rough(n, dx, index=i) for i in range(2)])
+    tight = solve(stack, dx, R, E_star=E_STAR, approach=15e-6, tol=1e-13, max_iter=5000, device=device)
+    for tol in (1e-6, 1e-8):
+        loose = solve(stack, dx, R, E_star=E_STAR, approach=15e-6, tol=tol, device=device)
+        assert np.abs(loose.force / tight.force - 1.0).max() < tol / 2
+        assert loose.iterations.max() < tight.iterations.min()
+
+
 def test_same_force_as_contactmechanics_on_a_rough_surface():
     pytest.importorskip("ContactMechanics", reason="ContactMechanics not installed (pip install -e '.[bem]')")
     from ContactMechanics import FreeFFTElasticHalfSpace

@@ -79,7 +79,7 @@ def test_memory_per_realization_is_affine_in_n():
 
 def test_tiny_study_through_the_cli(tmp_path, monkeypatch, device):
     tiny = bench.ScalingSize(repeats=2, refinement=(0.03, (10, 11, 12), 2), distance=((13, 14, 15), 2), ensemble=(13, (1, 2)),
-                           compare=(13, 2), stages=Params(L=0.05, n_real=2), thesis=False)
+                           compare=(13, 2), stages=(Params(L=0.05), 2), thesis=False)
     monkeypatch.setitem(bench.SIZES, "quick", tiny)
     assert main(["bench", "--quick", "--device", device, "--out", str(tmp_path), "--no-progress"]) == 0
     record = json.loads((tmp_path / "bench.json").read_text())

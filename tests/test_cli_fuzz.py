@@ -206,7 +206,8 @@ def part(tmp_path_factory):
 META_EDITS = st.sampled_from([
     ("realizations", None), ("realizations", []), ("realizations", [0, 0]), ("realizations", [2, 3]),
     ("realizations", ["a", 1]), ("n_real", 3), ("n_real", 0), ("n_real", "2"), ("mdroll_version", "9.9"),
-    ("seed", 1), ("window", True), ("params", {"L": 1}), ("steps", -1), (None, None)])
+    ("seed", 1), ("window", True), ("params", {"L": 1}), ("params", {"n_real": 2}), ("params", {"n_real": 3}),
+    ("steps", -1), (None, None)])
 ARRAY_EDITS = st.tuples(st.sampled_from(["q", "force_psd", "accel_psd_stderr"]),
                         st.sampled_from(["nan", "negative", "short", "grid", "none"]))
 

@@ -11,13 +11,15 @@ from mdroll.ensemble import pipeline
 from mdroll.fft import fftw_threads, irfft_rows, rfft_rows
 from mdroll.plotting import column_extremes
 
-P = Params(L=0.03, n_real=7)
+P = Params(L=0.03)
+#: realizations of the runs of P
+COUNT = 7
 
 
 def test_the_spectra_do_not_depend_on_the_threads():
     """Parts merged in their order whichever thread ran them: 1, 2 or 3 threads give the same
     bits (7 realizations: parts of 2, 2, 2, 1)."""
-    runs = [run_ensemble(P, seed=5, device="cpu", progress=False, threads=t) for t in (1, 2, 3)]
+    runs = [run_ensemble(P, realizations=COUNT, seed=5, device="cpu", progress=False, threads=t) for t in (1, 2, 3)]
     for run in runs[1:]:
         for name in ("force_psd", "force_psd_stderr", "accel_psd", "accel_psd_stderr"):
             np.testing.assert_array_equal(getattr(run, name), getattr(runs[0], name))
@@ -37,7 +39,7 @@ def test_a_thread_allocates_its_buffers_once(monkeypatch):
     monkeypatch.setattr(buffers, "_host_array", recorded)
     run_ensemble(P, seed=5, device="cpu", progress=False, threads=1, realizations=pipeline.CPU_CHUNK)
     one_part, made[:] = list(made), []
-    run_ensemble(P, seed=5, device="cpu", progress=False, threads=1)
+    run_ensemble(P, realizations=COUNT, seed=5, device="cpu", progress=False, threads=1)
     assert len(one_part) >= 4 and made == one_part, (one_part, made)
     assert all(shape[0] == pipeline.CPU_CHUNK for shape in made if len(shape) == 2)
 

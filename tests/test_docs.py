@@ -166,6 +166,12 @@ COMMANDS = {
     "mdroll bench --full --device cuda --out DIR": ("options", "mdroll bench"),
     "python benchmarks/e2e_thesis.py --device cuda:0 --out e2e.json": ("options", "python benchmarks/e2e_thesis.py"),
     "python benchmarks/coupled_thesis.py --out coupled.json": ("options", "python benchmarks/coupled_thesis.py"),
+    "python benchmarks/coupled_scaling.py --out coupled_scaling.json":
+        ("options", "python benchmarks/coupled_scaling.py"),
+    "python benchmarks/coupled_track.py --out coupled_track.json": ("options", "python benchmarks/coupled_track.py"),
+    "ncu --kernel-name regex:coupled --launch-count 1 --section WarpStateStats --section SchedulerStats --section "
+    "SourceCounters python benchmarks/coupled_scaling.py --steps-log2 14 --realizations 300 --warps 4 --tracks rigid "
+    "--algorithms sweep --repeats 1": ("ci", "Nsight Compute on the GPU machine"),
     "python benchmarks/profile_stages.py --algorithm edge --out profile.json":
         ("options", "python benchmarks/profile_stages.py"),
     "python benchmarks/fft_lengths.py --out fft_lengths.json": ("options", "python benchmarks/fft_lengths.py"),

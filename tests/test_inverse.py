@@ -39,7 +39,7 @@ def test_npz_table_two_sided_per_rad_s_declared_inside(tmp_path):
 
 
 def test_mdroll_npz_is_per_rad_s_on_omega(tmp_path):
-    p = mdroll.Params(L=0.05, n_real=2)
+    p = mdroll.Params(L=0.05)
     result = mdroll.run_ensemble(p, realizations=2, device="cpu", progress=False)
     path = result.save(tmp_path / "spectra.npz")
     s = read_spectrum(path, quantity="force")
@@ -197,7 +197,7 @@ def test_bootstrap_refits_simulations_at_the_estimate():
     the estimate, the simulated q_min is on the line's grid, and the intervals are ordered."""
     from mdroll.inverse.roundtrip import bootstrap
 
-    p = mdroll.Params(L=0.3, n_real=4)
+    p = mdroll.Params(L=0.3)
     spectrum = from_result(mdroll.EnsembleSpec(p, seed=9, realizations=4, window=True).run(device="cpu"), window=True)
     r = fit(spectrum, known={"m": 500, "R": 0.5, "E": 210e9, "q_min": p.q_min}, free=["H", "a", "h0", "a_jitter"],
             profile=False, device="cpu", correction_passes=32)  # corrected: the replicates are refitted
@@ -227,7 +227,7 @@ def test_bootstrap_runs_its_ensembles_through_a_given_runner():
             self.specs += specs
             return mdroll.run_specs(specs, device=device, progress=progress, **options)
 
-    p = mdroll.Params(L=0.3, n_real=4)
+    p = mdroll.Params(L=0.3)
     spectrum = from_result(mdroll.EnsembleSpec(p, seed=9, realizations=4, window=True).run(device="cpu"), window=True)
     r = fit(spectrum, known={"m": 500, "R": 0.5, "E": 210e9, "q_min": p.q_min}, free=["H", "a", "h0", "a_jitter"],
             profile=False, correction="none")
@@ -242,7 +242,7 @@ def test_bootstrap_runs_its_ensembles_through_a_given_runner():
 def test_invert_bootstrap_scheduler_unreachable_is_one_line(tmp_path, capsys):
     from mdroll.cli import main
 
-    p = mdroll.Params(L=0.3, n_real=4)
+    p = mdroll.Params(L=0.3)
     mdroll.EnsembleSpec(p, seed=9, realizations=4, window=True).run(device="cpu").save(tmp_path / "spectra.npz")
     code = main(["invert", str(tmp_path / "spectra.npz"), "--window", "--known", "m=500", "--known", "R=0.5",
                  "--bootstrap", "2", "--no-profile", "--correction", "none", "--scheduler", "tcp://127.0.0.1:9", "--out", str(tmp_path / "inv")])
@@ -278,7 +278,7 @@ def test_simulated_correction_covers_H_where_the_closed_form_does_not():
     while the fit with the simulated correction (the default for an mdroll spectrum) covers it,
     and its ratio r rises from the low band to the top of the band (physics.md section 7)."""
     p = mdroll.Params(L=1.0)
-    spectrum = from_result(mdroll.EnsembleSpec(p.replace(n_real=100), seed=0, realizations=100, window=True)
+    spectrum = from_result(mdroll.EnsembleSpec(p, seed=0, realizations=100, window=True)
                            .run(device="cpu"), window=True)
     known = {"m": 500, "R": 0.5}
     closed = fit(spectrum, known=known, profile=False, correction="none")
@@ -351,7 +351,7 @@ def test_fill_check_holds_the_simulated_correction_and_adds_the_shift():
     correction held (its gain dropped: one per free parameter of the original fit) and widens by
     the shift in the fitted scale: sd^2 = sd_local^2 + d^2 (log scale for E*, linear for H), a_jitter's
     d from its fitted value to eq 47's."""
-    p = mdroll.Params(L=0.3, n_real=8)
+    p = mdroll.Params(L=0.3)
     spectrum = from_result(mdroll.EnsembleSpec(p, seed=9, realizations=8, window=True).run(device="cpu"), window=True)
     r = fit(spectrum, known={"m": 500, "R": 0.5}, free=["H", "q_min", "a", "h0", "E_star", "a_jitter", "noise"],
             profile=False, device="cpu", correction_passes=32)

@@ -7,6 +7,7 @@ import pytest
 
 from mdroll.errors import ParameterError
 from mdroll import Params
+from mdroll.ensemble.realizations import read_params
 
 
 def test_defaults_and_derived_against_hand_values():
@@ -63,8 +64,9 @@ BAD = [
 
 @pytest.mark.parametrize("name,value", BAD, ids=[f"{n}={v!r}" for n, v in BAD])
 def test_bad_values_name_the_parameter(name, value):
+    """Through the one reader of parameter dicts, which takes the run's count n_real too."""
     with pytest.raises(ParameterError) as info:
-        Params(**{name: value})
+        read_params({name: value})
     message = str(info.value)
     assert message.split()[0].startswith(name) or f"{name} " in message, message
     assert isinstance(info.value, ValueError)

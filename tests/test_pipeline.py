@@ -12,20 +12,22 @@ from mdroll import EnsembleResult, Params, contact_force, rough_lines, run_ensem
 from mdroll.forces.registry import default_algorithm
 from mdroll.ensemble.pipeline import H_BOUND_SIGMAS
 
-P = Params(L=0.05, n_real=5)
+P = Params(L=0.05)
+#: realizations of the runs of P
+COUNT = 5
 
 
 @pytest.mark.parametrize("window", [True, False], ids=["default-hann", "thesis-no-window"])
 def test_averaged_psd_equals_mean_of_numpy_psds(device, window):
-    result = run_ensemble(P, seed=3, device=device, progress=False, batch=2, window=window)
-    lines = to_numpy(rough_lines(P, 3, P.n_real, device="cpu"))
+    result = run_ensemble(P, realizations=COUNT, seed=3, device=device, progress=False, batch=2, window=window)
+    lines = to_numpy(rough_lines(P, 3, COUNT, device="cpu"))
     force = contact_force(lines, P, "tree", "open", h_max=H_BOUND_SIGMAS * P.h0)
     q, C = psd(force, P.dx, window=window)
     np.testing.assert_allclose(result.q, q, rtol=1e-14)
     # with the window, the pipeline's 3-bin stencil on the spectrum cancels its neighbours where the
     # reference multiplies in time: rounding relative to the neighbours, up to ~1e-8 of a small bin
     np.testing.assert_allclose(result.force_psd[1:], C.mean(axis=0)[1:], rtol=1e-7 if window else 1e-9)
-    np.testing.assert_allclose(result.force_psd_stderr[1:], C.std(axis=0, ddof=1)[1:] / np.sqrt(P.n_real),
+    np.testing.assert_allclose(result.force_psd_stderr[1:], C.std(axis=0, ddof=1)[1:] / np.sqrt(COUNT),
                                rtol=1e-7 if window else 1e-8)
     assert result.omega == pytest.approx(q * P.v0)
     assert result.force_mean == pytest.approx(force.mean(), rel=1e-12)
@@ -36,7 +38,7 @@ def test_decoupled_spectra_are_those_of_the_semi_implicit_euler_response(device,
     """The decoupled acceleration PSD, computed bin by bin from the force spectrum and the final
     state (kernels/moments.py), against the PSD of a plain sequential loop's series (section 5.1);
     the Hann window, applied as a three-bin stencil, against the window applied to the series."""
-    p = Params(L=0.2, n_real=1)  # ~3.8e4 steps
+    p = Params(L=0.2)  # ~3.8e4 steps
     lines = rough_lines(p, 1, 1)
     first, steps = step_range(p, "open", p.d0, H_BOUND_SIGMAS * p.h0)
     force = contact_force(lines, p, "tree", "open", h_max=H_BOUND_SIGMAS * p.h0)[0]
@@ -60,8 +62,8 @@ def test_coupled_windowed_spectra_are_those_of_the_coupled_series(device):
     from mdroll.forces.prepare import prepare_lines
     from mdroll.ensemble.coupled import coupled_series
 
-    p = Params(L=0.03, n_real=2)
-    result = run_ensemble(p, seed=4, mode="coupled", device=device, progress=False, window=True)
+    p = Params(L=0.03)
+    result = run_ensemble(p, realizations=2, seed=4, mode="coupled", device=device, progress=False, window=True)
     lines = rough_lines(p, 4, 2, device=device)
     prepared = prepare_lines(lines, p, "tree", "open", p.d0, device, h_max=H_BOUND_SIGMAS * p.h0)
     force, accel = (a.numpy() for a in coupled_series(prepared, p, "tree", device))
@@ -76,9 +78,9 @@ def test_stage_times_cover_every_stage_within_the_run(device):
     on the CPU), and together they fit inside the call's wall time."""
     import time
 
-    run_ensemble(P, seed=2, device=device, progress=False)  # first use: compilation, plans
+    run_ensemble(P, realizations=COUNT, seed=2, device=device, progress=False)  # first use: compilation, plans
     t0 = time.perf_counter()
-    result = run_ensemble(P, seed=2, device=device, progress=False, batch=2)
+    result = run_ensemble(P, realizations=COUNT, seed=2, device=device, progress=False, batch=2)
     wall = time.perf_counter() - t0
     assert set(result.timings) == {"generate", "build", "force", "response", "spectra"}
     assert all(t > 0 for t in result.timings.values()), result.timings
@@ -86,8 +88,8 @@ def test_stage_times_cover_every_stage_within_the_run(device):
 
 
 def test_same_result_for_any_batch_size_and_order(device):
-    a = run_ensemble(P, seed=5, device=device, progress=False, batch=1)
-    b = run_ensemble(P, seed=5, device=device, progress=False, batch=5)
+    a = run_ensemble(P, realizations=COUNT, seed=5, device=device, progress=False, batch=1)
+    b = run_ensemble(P, realizations=COUNT, seed=5, device=device, progress=False, batch=5)
     c = run_ensemble(P, seed=5, realizations=[4, 0, 3, 1, 2], device=device, progress=False, batch=2)
     # to rounding: cuFFT picks its algorithm by batch size, so bins 1e4 below the peak differ
     # by ~1e-16 of the peak (1e-12 of themselves)
@@ -163,9 +165,9 @@ def test_coupled_force_is_the_force_at_the_current_indentation(device, algorithm
 
 
 def test_coupled_and_decoupled_agree_above_resonance():
-    p = Params(L=0.3, n_real=2)
-    dec = run_ensemble(p, seed=2, mode="decoupled", device="cpu", progress=False)
-    cou = run_ensemble(p, seed=2, mode="coupled", device="cpu", progress=False)
+    p = Params(L=0.3)
+    dec = run_ensemble(p, realizations=2, seed=2, mode="decoupled", device="cpu", progress=False)
+    cou = run_ensemble(p, realizations=2, seed=2, mode="coupled", device="cpu", progress=False)
     band = (dec.omega > 2 * p.omega_0) & (dec.q < 8 * p.q_min)
     ratio = cou.accel_psd[band].mean() / dec.accel_psd[band].mean()
     assert ratio == pytest.approx(1.0, abs=0.10)
@@ -173,7 +175,7 @@ def test_coupled_and_decoupled_agree_above_resonance():
 
 
 def test_save_load_round_trip(tmp_path):
-    result = run_ensemble(P, seed=7, device="cpu", progress=False)
+    result = run_ensemble(P, realizations=COUNT, seed=7, device="cpu", progress=False)
     path = result.save(tmp_path / "spectra.npz")
     back = EnsembleResult.load(path)
     assert back.params == result.params and back.seed == 7 and back.algorithm == default_algorithm("decoupled")
@@ -259,7 +261,7 @@ def test_resumed_run_continues_on_the_device(device, tmp_path, monkeypatch):
 
     monkeypatch.setattr(pipeline, "_cpu_parts", recorded)
     # the uninterrupted run with a checkpoint too: its batches are then planned the same way
-    full = run_ensemble(P, seed=6, device=device, progress=False, batch=2, checkpoint=tmp_path / "full.npz")
+    full = run_ensemble(P, realizations=COUNT, seed=6, device=device, progress=False, batch=2, checkpoint=tmp_path / "full.npz")
     planned, batches[:] = list(batches), []
     original = pipeline.psd_moments_of_batch
 
@@ -271,10 +273,10 @@ def test_resumed_run_continues_on_the_device(device, tmp_path, monkeypatch):
     checkpoint = tmp_path / "checkpoint.npz"
     monkeypatch.setattr(pipeline, "psd_moments_of_batch", stop_at_the_second_batch)
     with pytest.raises(Stop):
-        run_ensemble(P, seed=6, device=device, progress=False, batch=2, checkpoint=checkpoint)
+        run_ensemble(P, realizations=COUNT, seed=6, device=device, progress=False, batch=2, checkpoint=checkpoint)
     monkeypatch.setattr(pipeline, "psd_moments_of_batch", original)
     del batches[1:]  # the batch that was stopped
-    resumed = run_ensemble(P, seed=6, device=device, progress=False, batch=2, checkpoint=checkpoint, resume=True)
+    resumed = run_ensemble(P, realizations=COUNT, seed=6, device=device, progress=False, batch=2, checkpoint=checkpoint, resume=True)
     assert planned[0] == 1 and batches == planned, (planned, batches)
     for name in ("force_psd", "force_psd_stderr", "accel_psd", "accel_psd_stderr"):
         np.testing.assert_allclose(getattr(resumed, name), getattr(full, name), rtol=1e-12)
@@ -331,22 +333,22 @@ def test_an_algorithm_is_added_by_one_registry_entry(monkeypatch):
     from mdroll.forces.registry import REGISTRY
 
     monkeypatch.setitem(REGISTRY, "direct-copy", dataclasses.replace(REGISTRY["direct"], name="direct-copy", coupled=None))
-    p = Params(L=0.03, n_real=2)
+    p = Params(L=0.03)
     lines = rough_lines(p, 1, 2)
     np.testing.assert_array_equal(contact_force(lines, p, "direct-copy"), contact_force(lines, p, "direct"))
-    copy = run_ensemble(p, seed=1, algorithm="direct-copy", device="cpu", progress=False)
-    direct = run_ensemble(p, seed=1, algorithm="direct", device="cpu", progress=False)
+    copy = run_ensemble(p, realizations=2, seed=1, algorithm="direct-copy", device="cpu", progress=False)
+    direct = run_ensemble(p, realizations=2, seed=1, algorithm="direct", device="cpu", progress=False)
     np.testing.assert_array_equal(copy.force_psd, direct.force_psd)
     with pytest.raises(ParameterError, match="'direct-copy' has no coupled step: mode = 'coupled' takes one of tree, direct, edge, sweep"):
-        run_ensemble(p, algorithm="direct-copy", mode="coupled", progress=False)
+        run_ensemble(p, realizations=2, algorithm="direct-copy", mode="coupled", progress=False)
 
 
 @pytest.mark.parametrize("mode", ["decoupled", "coupled"])
 def test_cpu_threads_give_the_same_spectra(mode):
     """A CPU batch split over 3 threads (parts of 2, 2, 1 realizations, moments merged in order)
     gives the one-thread run's spectra and force moments to rounding."""
-    p = Params(L=0.03, n_real=5)
-    one, three = (run_ensemble(p, seed=3, mode=mode, device="cpu", progress=False, batch=5, threads=t) for t in (1, 3))
+    p = Params(L=0.03)
+    one, three = (run_ensemble(p, realizations=5, seed=3, mode=mode, device="cpu", progress=False, batch=5, threads=t) for t in (1, 3))
     for name in ("force_psd", "accel_psd"):
         np.testing.assert_allclose(getattr(three, name), getattr(one, name), rtol=1e-12, atol=1e-14 * getattr(one, name).max())
     assert three.force_rms == pytest.approx(one.force_rms, rel=1e-12)

@@ -24,10 +24,13 @@ from mdroll.ensemble.resolution import Resolution
 from mdroll.ensemble import batching, checkpoint as checkpoint_module, pipeline, validity
 from mdroll.forces.indenter import reach
 from mdroll.ensemble.checkpoint import CHECKPOINT, read_checkpoint
+from mdroll.ensemble.realizations import DEFAULT_REALIZATIONS, read_params
 from mdroll.errors import NonFiniteError
 
 ROOT = Path(__file__).resolve().parents[1]
-P = Params(L=0.05, n_real=6)
+P = Params(L=0.05)
+#: realizations of the runs of P
+COUNT = 6
 
 
 @wp.kernel
@@ -41,7 +44,8 @@ LINES = np.zeros((1, P.n_points))
 API_CASES = [
     (lambda: Params(H=float("nan")), "H"),
     (lambda: Params(dx="5e-6"), "dx"),
-    (lambda: Params(n_real=0), "n_real"),
+    (lambda: read_params({"n_real": 0}), "n_real = 0 is not allowed: the number of realizations"),
+    (lambda: Params().replace(n_real=8), r"unknown parameter\(s\) \['n_real'\]"),  # the count is the run's
     (lambda: rough_lines(P, -1, 2), "seed"),
     (lambda: rough_lines(P, 0, 0), "realizations"),
     (lambda: rough_lines(P, 0, [1.5]), "realizations"),
@@ -58,18 +62,18 @@ API_CASES = [
     (lambda: contact_force(np.zeros((2, 100)), P), "shape"),
     (lambda: contact_force(LINES, P, device="cuda:9"), "cuda:9"),
     (lambda: run_ensemble(P, realizations=0, progress=False), "realizations"),
-    (lambda: run_ensemble(P, mode="implicit", progress=False), "mode"),
-    (lambda: run_ensemble(P, algorithm="fast", progress=False), "algorithm = 'fast' .* choose one of tree, direct, edge"),
-    (lambda: run_ensemble(P, batch=0, progress=False), "batch"),
-    (lambda: run_ensemble(P, batch=2.5, progress=False), "batch = 2.5 .* positive integer"),
-    (lambda: run_ensemble(P, memory_limit=-5, progress=False), "memory_limit"),
-    (lambda: run_ensemble(P, memory_limit=1.5e9, progress=False), "memory_limit = 1500000000.0 .* positive integer"),
-    (lambda: run_ensemble(P, leaf_size=0, progress=False), "leaf_size = 0 .* positive integer"),
-    (lambda: run_ensemble(P, leaf_size=True, progress=False), "leaf_size = True"),
-    (lambda: run_ensemble(P, window="yes", progress=False), "window = 'yes' .* True or False"),
-    (lambda: run_ensemble(P, progress=None), "progress = None"),
+    (lambda: run_ensemble(P, realizations=COUNT, mode="implicit", progress=False), "mode"),
+    (lambda: run_ensemble(P, realizations=COUNT, algorithm="fast", progress=False), "algorithm = 'fast' .* choose one of tree, direct, edge"),
+    (lambda: run_ensemble(P, realizations=COUNT, batch=0, progress=False), "batch"),
+    (lambda: run_ensemble(P, realizations=COUNT, batch=2.5, progress=False), "batch = 2.5 .* positive integer"),
+    (lambda: run_ensemble(P, realizations=COUNT, memory_limit=-5, progress=False), "memory_limit"),
+    (lambda: run_ensemble(P, realizations=COUNT, memory_limit=1.5e9, progress=False), "memory_limit = 1500000000.0 .* positive integer"),
+    (lambda: run_ensemble(P, realizations=COUNT, leaf_size=0, progress=False), "leaf_size = 0 .* positive integer"),
+    (lambda: run_ensemble(P, realizations=COUNT, leaf_size=True, progress=False), "leaf_size = True"),
+    (lambda: run_ensemble(P, realizations=COUNT, window="yes", progress=False), "window = 'yes' .* True or False"),
+    (lambda: run_ensemble(P, realizations=COUNT, progress=None), "progress = None"),
     (lambda: run_ensemble(None, progress=False), "params must be an mdroll.Params"),
-    (lambda: run_ensemble(P, device="tpu", progress=False), "tpu"),
+    (lambda: run_ensemble(P, realizations=COUNT, device="tpu", progress=False), "tpu"),
 ]
 
 
@@ -189,9 +193,9 @@ def test_every_kernel_argument_on_the_force_path_is_float64():
 def test_cpu_and_cuda_give_the_same_spectra(cuda_devices):
     if not cuda_devices:
         pytest.skip("no CUDA device")
-    cpu = run_ensemble(P, seed=3, device="cpu", progress=False)
+    cpu = run_ensemble(P, realizations=COUNT, seed=3, device="cpu", progress=False)
     for device in cuda_devices:
-        gpu = run_ensemble(P, seed=3, device=device, progress=False)
+        gpu = run_ensemble(P, realizations=COUNT, seed=3, device=device, progress=False)
         np.testing.assert_allclose(gpu.force_psd, cpu.force_psd, rtol=1e-9, atol=1e-12 * cpu.force_psd.max())
         np.testing.assert_allclose(gpu.accel_psd, cpu.accel_psd, rtol=1e-9, atol=1e-12 * cpu.accel_psd.max())
 
@@ -210,8 +214,8 @@ def test_split_across_processes_and_merged(quick_plots, tmp_path, capsys):
     merged_dir = tmp_path / "merged"
     assert _main(capsys, "merge", *parts, "--out", merged_dir, "--no-progress")[0] == 0
     merged = EnsembleResult.load(merged_dir / "spectra.npz")
-    whole = run_ensemble(P, seed=4, device="cpu", progress=False)
-    assert merged.n_real == 6 and merged.params.n_real == 6 and sorted(merged.realizations) == list(range(6))
+    whole = run_ensemble(P, realizations=COUNT, seed=4, device="cpu", progress=False)
+    assert merged.n_real == 6 and "n_real" not in merged.params.as_dict() and sorted(merged.realizations) == list(range(6))
     assert merged.params == whole.params and json.loads((merged_dir / "summary.json").read_text())["n_real"] == 6
     np.testing.assert_allclose(merged.accel_psd, whole.accel_psd, rtol=1e-12, atol=1e-12 * whole.accel_psd.max())
     np.testing.assert_allclose(merged.force_psd_stderr, whole.force_psd_stderr, rtol=1e-10)
@@ -257,9 +261,9 @@ def test_kill_9_then_resume_equals_an_uninterrupted_run(tmp_path, cli, one_line_
 # ----------------------------------------------------------------------------- bounded memory
 def test_memory_cap_shrinks_batches_and_the_run_completes():
     per_realization = batching.BYTES_PER_POINT * P.n_points
-    capped = run_ensemble(P, seed=2, device="cpu", progress=False, memory_limit=4 * per_realization)
+    capped = run_ensemble(P, realizations=COUNT, seed=2, device="cpu", progress=False, memory_limit=4 * per_realization)
     assert capped.batch == 2  # half the cap: two realizations a batch, three batches
-    free = run_ensemble(P, seed=2, device="cpu", progress=False)
+    free = run_ensemble(P, realizations=COUNT, seed=2, device="cpu", progress=False)
     assert free.batch >= 6
     np.testing.assert_allclose(capped.force_psd, free.force_psd, rtol=1e-12, atol=1e-12 * free.force_psd.max())
 
@@ -267,7 +271,7 @@ def test_memory_cap_shrinks_batches_and_the_run_completes():
 def test_thesis_scale_batches_fit_a_24_gib_host():
     thesis = Params()
     batch = batching.default_batch(thesis, "cpu", memory_limit=24 * 2**30)
-    assert 1 <= batch < thesis.n_real
+    assert 1 <= batch < DEFAULT_REALIZATIONS
     assert batch * batching.BYTES_PER_POINT * thesis.n_points <= 12 * 2**30
 
 
@@ -312,7 +316,7 @@ API_CASES_16 = [
     (lambda: Params(h0=5e-324), "h0 = 5e-324"),  # spectra of zeros
     (lambda: Params(dx=1e-4, q_min=1e5), "dx = 0.0001 m"),
     (lambda: rough_lines(P, 0, 10**14), "realizations = 100000000000000"),
-    (lambda: run_ensemble(P, memory_limit=1000, progress=False, device="cpu"), "reduce L or increase dx"),
+    (lambda: run_ensemble(P, realizations=COUNT, memory_limit=1000, progress=False, device="cpu"), "reduce L or increase dx"),
 ]
 
 

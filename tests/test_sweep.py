@@ -255,9 +255,9 @@ def test_sweep_runs_decoupled_and_coupled_ensembles_as_the_tree():
     from mdroll import run_ensemble
 
     for mode in ("decoupled", "coupled"):
-        p = Params(L=0.03, n_real=3)
-        sweep = run_ensemble(p, seed=2, algorithm="sweep", mode=mode, device="cpu", progress=False)
-        tree = run_ensemble(p, seed=2, algorithm="tree", mode=mode, device="cpu", progress=False)
+        p = Params(L=0.03)
+        sweep = run_ensemble(p, realizations=3, seed=2, algorithm="sweep", mode=mode, device="cpu", progress=False)
+        tree = run_ensemble(p, realizations=3, seed=2, algorithm="tree", mode=mode, device="cpu", progress=False)
         assert sweep.mode == mode
         np.testing.assert_allclose(sweep.force_psd, tree.force_psd, rtol=1e-9, atol=1e-12 * tree.force_psd.max())
         np.testing.assert_allclose(sweep.accel_psd, tree.accel_psd, rtol=1e-9, atol=1e-12 * tree.accel_psd.max())

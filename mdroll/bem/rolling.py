@@ -7,7 +7,9 @@ surface (axis 0 along the track) and its n middle columns, with the indenter's l
 the window's centre: at ``x_s = (start + s + (n - 1) / 2) dx`` along the surface. Between
 positions the surface moves one row under the indenter, so the last pressure shifted back by one
 row (``p[i] <- p[i + 1]``, the new last row 0) starts the next solve: asperity contacts stay
-where they were on the surface.
+where they were on the surface. On NumPy the positions are solved one after the other for the
+whole batch; on CUDA each member moves on as soon as it converged (:class:`mdroll.bem.fused.FusedRoll`),
+with the same solves.
 """
 
 from __future__ import annotations
@@ -19,8 +21,8 @@ import numpy as np
 
 from ..errors import ParameterError
 from .halfspace import HalfSpace
-from .solver import (MAX_ITERATIONS, TOLERANCE, array_module, check_problem, check_stopping, constrained_cg,
-                     indenter_gap, initial_pressure, summarize, to_host)
+from .solver import (MAX_ITERATIONS, TOLERANCE, array_module, check_problem, check_stopping, indenter_gap,
+                     initial_pressure, iteration, summarize, to_host)
 
 
 @dataclass
@@ -49,6 +51,28 @@ def shift_back(xp, pressure):
     shifted[..., :-1, :] = pressure[..., 1:, :]
     shifted[..., -1, :] = 0.0
     return shifted
+
+
+def _roll_steps(op, full, gap, start, columns, steps, control, load_control, tol, max_iter, fresh):
+    """The positions one after the other (NumPy): each solve started from the last pressure shifted
+    back one row. Returns the fields (B, steps) and the last pressure."""
+    xp, n = op.xp, op.n
+    solver = iteration(op, full.shape[0], load_control)
+    pressure, rows = None, []
+    for s in range(steps):
+        separation = gap - full[:, start + s:start + s + n, columns]
+        if pressure is None:
+            pressure = fresh(separation)
+        else:  # a member that lost contact starts afresh: no pressure, no direction to search
+            pressure = shift_back(xp, pressure)
+            lost = pressure.sum(axis=(-2, -1)) == 0
+            if lost.any():
+                pressure = xp.where(lost[:, None, None], fresh(separation), pressure)
+        pressure, d, iterations, residual = solver(separation, control, pressure, tol, max_iter)
+        rows.append(summarize(pressure, d, iterations, residual, tol, op.dx))
+    fields = {name: np.stack([getattr(r, name) for r in rows], axis=-1)
+              for name in ("force", "approach", "area", "iterations", "residual", "converged")}
+    return fields, to_host(pressure)
 
 
 def roll(surface, dx, radius, *, E_star, steps, approach=None, load=None, window=None, start=0, radius_y=None,
@@ -90,27 +114,25 @@ def roll(surface, dx, radius, *, E_star, steps, approach=None, load=None, window
         np.empty((shape[0] if batched else 1, n, n)), dx, radius, E_star, approach, load, radius_y)
     tol, max_iter = check_stopping(tol, max_iter)
     xp, context = array_module(device)
-    rows = []
     with context:
         op = HalfSpace(n, dx, E_star, xp=xp)
         gap = indenter_gap(n, dx, radius, radius_y, xp)
         full = xp.asarray(surface, dtype=xp.float64).reshape(-1, length, width)
-        pressure = None
-        for s in range(steps):
-            separation = gap - full[:, start + s:start + s + n, columns]
-            fresh = initial_pressure(op, separation, control, load_control, math.sqrt(radius * radius_y))
-            if pressure is None:
-                pressure = fresh
-            else:  # a member that lost contact starts afresh: no pressure, no direction to search
-                pressure = shift_back(xp, pressure)
-                lost = pressure.sum(axis=(-2, -1)) == 0
-                pressure = xp.where(lost[:, None, None], fresh, pressure)
-            pressure, d, iterations, residual = constrained_cg(op, separation, control, load_control, pressure,
-                                                               tol, max_iter)
-            rows.append(summarize(pressure, d, iterations, residual, tol, dx))
-    fields = {name: np.stack([getattr(r, name) for r in rows], axis=-1)
-              for name in ("force", "approach", "area", "iterations", "residual", "converged")}
-    last = to_host(pressure)
+
+        def fresh(separation):
+            return initial_pressure(op, separation, control, load_control, math.sqrt(radius * radius_y))
+
+        if xp is np:
+            fields, last = _roll_steps(op, full, gap, start, columns, steps, control, load_control, tol, max_iter,
+                                       fresh)
+        else:
+            from .fused import FusedRoll
+
+            first = gap - full[:, start:start + n, columns]
+            *values, last = FusedRoll(op, full, gap, start, columns.start, steps, load_control).run(
+                first, control, fresh(first), tol, max_iter, fresh)
+            fields = dict(zip(("force", "approach", "area", "iterations", "residual"), values))
+            fields["converged"] = fields["residual"] < tol
     if not batched:
         fields = {name: value[0] for name, value in fields.items()}
         last = last[0]

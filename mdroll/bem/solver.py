@@ -21,6 +21,7 @@ Displacement control fixes d; load control fixes F and finds d as the mean of
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 from dataclasses import dataclass
 
@@ -205,6 +206,29 @@ def constrained_cg(op, separation, control, load_control, pressure, tol, max_ite
     return pressure, approach, iterations, residual
 
 
+def iteration(op, batch, load_control):
+    """The constrained conjugate gradients for ``op``'s arrays, as a call ``(separation, control,
+    pressure, tol, max_iter) -> (p, d, iterations, residual)``: :func:`constrained_cg` on NumPy; on
+    CuPy the same iteration fused into a few kernels replayed as a CUDA graph
+    (:class:`mdroll.bem.fused.FusedCG`), whose buffers serve every later call of the batch."""
+    if op.xp is np:
+        return lambda separation, control, pressure, tol, max_iter: constrained_cg(
+            op, separation, control, load_control, pressure, tol, max_iter)
+    from .fused import FusedCG
+
+    return FusedCG(op, batch, load_control)
+
+
+@functools.lru_cache(maxsize=4)
+def workspace(device, n, dx, E_star, batch, load_control):
+    """The half-space operator and the solver (:func:`iteration`) of one problem size, kept for the
+    next :func:`solve` of that size: the Love coefficients' spectrum and, on CUDA, the solver's
+    buffers, cuFFT plans and CUDA graph are built once (the last four sizes stay allocated)."""
+    xp, _ = array_module(device)
+    op = HalfSpace(n, dx, E_star, xp=xp)
+    return op, iteration(op, batch, load_control)
+
+
 def solve(heights, dx, radius, *, E_star, approach=None, load=None, radius_y=None, device="cpu",
           tol=TOLERANCE, max_iter=MAX_ITERATIONS, initial=None):
     """Normal contact of a rigid sphere (or ellipsoid) on a rough elastic half-space, free boundary.
@@ -244,14 +268,14 @@ def solve(heights, dx, radius, *, E_star, approach=None, load=None, radius_y=Non
     tol, max_iter = check_stopping(tol, max_iter)
     xp, context = array_module(device)
     with context:
-        op = HalfSpace(n, dx, E_star, xp=xp)
         surface = xp.asarray(heights, dtype=xp.float64).reshape(-1, n, n)
+        op, solver = workspace(device, n, dx, E_star, surface.shape[0], load_control)
         separation = indenter_gap(n, dx, radius, radius_y, xp) - surface
         if initial is None:
             start = initial_pressure(op, separation, control, load_control, math.sqrt(radius * radius_y))
         else:
             start = xp.asarray(initial, dtype=xp.float64).reshape(-1, n, n)
-        p, d, iterations, residual = constrained_cg(op, separation, control, load_control, start, tol, max_iter)
+        p, d, iterations, residual = solver(separation, control, start, tol, max_iter)
         result = summarize(p, d, iterations, residual, tol, dx)
     pressure = result.pressure if type(heights).__module__.startswith("cupy") else to_host(result.pressure)
     return unbatch(result, pressure, batched)

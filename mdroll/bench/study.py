@@ -51,7 +51,7 @@ class ScalingSize:
     distance: tuple
     ensemble: tuple
     compare: tuple  # (log2 n, realizations) of the CPU-vs-CUDA run
-    stages: Params
+    stages: tuple  # (Params, realizations) of the end-to-end run whose stages are timed
     thesis: bool
     cpu_refinement: tuple | None = None
     cpu_distance: tuple | None = None
@@ -76,11 +76,11 @@ class ScalingSize:
 SIZES = Ladder(
     # minutes on a CPU
     quick=ScalingSize(repeats=3, refinement=(0.05, (12, 13, 14, 15, 16), 8), distance=((14, 15, 16, 17, 18), 4),
-                       ensemble=(15, (1, 2, 4, 8, 16)), compare=(15, 4), stages=Params(L=0.2, n_real=8), thesis=False),
+                       ensemble=(15, (1, 2, 4, 8, 16)), compare=(15, 4), stages=(Params(L=0.2), 8), thesis=False),
     # a GPU: CUDA sizes large enough to fill it (tens of millions of steps), the CPU (one core per
     # launch) its own smaller sweeps
     full=ScalingSize(repeats=5, refinement=(0.25, (17, 18, 19, 20, 21, 22), 64), distance=((16, 17, 18, 19, 20, 21, 22), 64),
-                      ensemble=(18, (1, 4, 16, 64, 256, 1024)), compare=(18, 64), stages=Params(L=5.24288, n_real=300),
+                      ensemble=(18, (1, 4, 16, 64, 256, 1024)), compare=(18, 64), stages=(Params(L=5.24288), 300),
                       thesis=True, cpu_refinement=(0.25, (13, 14, 15, 16, 17, 18), 1),
                       cpu_distance=((14, 15, 16, 17, 18, 19, 20, 21, 22), 1),
                       # the fast forms' smallest launches at 64 lines come near the latency of a
@@ -228,10 +228,10 @@ def run_study(size: str = "quick", devices=None, progress=print) -> dict:
             record["cpu_vs_cuda"].append({"algorithm": algorithm, "n": p.n_points, "realizations": runs, "times_s": times,
                                           **{f"speedup_{d}": cpu / t for d, t in times.items() if d != "cpu" and cpu}})
     for device in devices:
-        stages_params = study.stages if device.startswith("cuda") or not full else Params(L=0.2, n_real=8)
-        run_ensemble(stages_params, device=device, progress=False)  # warm-up: plans, pools
-        result = run_ensemble(stages_params, device=device, progress=False)
-        record["stages"][device] = {"params": {"L": stages_params.L, "n_real": stages_params.n_real},
+        stages_params, count = study.stages if device.startswith("cuda") or not full else (Params(L=0.2), 8)
+        run_ensemble(stages_params, realizations=count, device=device, progress=False)  # warm-up: plans, pools
+        result = run_ensemble(stages_params, realizations=count, device=device, progress=False)
+        record["stages"][device] = {"params": {"L": stages_params.L, "n_real": count},
                                     "timings_s": result.timings, "total_s": sum(result.timings.values())}
         record["memory_bytes_per_realization"][device] = {
             alg: memory_per_realization(Params(), alg, device) for alg in ALGORITHMS}
@@ -245,19 +245,21 @@ def run_study(size: str = "quick", devices=None, progress=print) -> dict:
 def thesis_scale(device: str, repeats: int, progress=print) -> dict:
     """300 x 2^20, open boundary: force-only, warm end-to-end (decoupled) and coupled end-to-end
     (one run, kernels already compiled) per algorithm."""
-    p = Params(L=5.24288, n_real=300)
+    p, count = Params(L=5.24288), 300
     out = {"force": {}, "end_to_end": {}, "coupled": {}}
     for algorithm in ALGORITHMS:
-        out["force"][algorithm] = force_time(p, algorithm, p.n_real, device, repeats, boundary="open")
+        out["force"][algorithm] = force_time(p, algorithm, count, device, repeats, boundary="open")
         progress(f"{device} thesis force {algorithm}: {out['force'][algorithm]['force_s'] * 1e3:.2f} ms")
     for algorithm in ALGORITHMS:
-        run_ensemble(p, algorithm=algorithm, device=device, progress=False)
-        total, times = timed(lambda: run_ensemble(p, algorithm=algorithm, device=device, progress=False), device, 3)
+        run_ensemble(p, realizations=count, algorithm=algorithm, device=device, progress=False)
+        total, times = timed(lambda: run_ensemble(p, realizations=count, algorithm=algorithm, device=device,
+                                                  progress=False), device, 3)
         out["end_to_end"][algorithm] = {"total_s": total, "times_s": times}
         progress(f"{device} thesis end to end {algorithm}: {total:.3f} s")
     for algorithm in (name for name in ALGORITHMS if REGISTRY[name].coupled is not None):
         t0 = time.perf_counter()  # run_ensemble returns after its result is on the host
-        timings = run_ensemble(p, algorithm=algorithm, mode="coupled", device=device, progress=False).timings
+        timings = run_ensemble(p, realizations=count, algorithm=algorithm, mode="coupled", device=device,
+                               progress=False).timings
         out["coupled"][algorithm] = {"total_s": time.perf_counter() - t0, "timings_s": timings}
         progress(f"{device} thesis coupled {algorithm}: {out['coupled'][algorithm]['total_s']:.3f} s "
                  f"(dynamics {timings['response']:.3f} s)")

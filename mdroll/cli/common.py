@@ -20,9 +20,12 @@ from ..errors import MdrollError, UsageError
 from ..files import read_toml
 from ..track import Track
 from ..wheel import Wheel
+from ..ensemble.realizations import COUNT_KEY, read_params
 from ..params import TEXT_FIELDS, Params
 
-PARAM_NAMES = tuple(f.name for f in dataclasses.fields(Params))
+#: The keys of ``--set`` and a config file: the fields of :class:`~mdroll.Params` and the run's
+#: realization count :data:`~mdroll.ensemble.realizations.COUNT_KEY` (``n_real``).
+PARAM_NAMES = tuple(f.name for f in dataclasses.fields(Params)) + (COUNT_KEY,)
 PRESETS = {
     # a small ensemble for a laptop CPU
     "quick": {"L": 0.2, "n_real": 8},
@@ -49,7 +52,8 @@ class Parser(argparse.ArgumentParser):
 
 # ----------------------------------------------------------------------------- options
 def param_options(p) -> None:
-    """``--config``, ``--set`` and ``--preset``: the run's :class:`~mdroll.Params` (:func:`build_params`)."""
+    """``--config``, ``--set`` and ``--preset``: the run's :class:`~mdroll.Params` and realization
+    count (:func:`build_params`)."""
     p.add_argument("--config", metavar="FILE.toml", help="parameters from a TOML file")
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="set one parameter (repeatable), SI units")
     p.add_argument("--preset", choices=sorted(PRESETS), help="quick: L = 0.2 m, 8 realizations")
@@ -113,11 +117,11 @@ def _parse_value(key: str, text: str):
     if key in TEXT_FIELDS:
         return text
     try:
-        if key == "n_real":
+        if key == COUNT_KEY:
             return int(text)
         return float(text)
     except ValueError:
-        kind = "an integer" if key == "n_real" else "a number"
+        kind = "an integer" if key == COUNT_KEY else "a number"
         raise UsageError(f"--set {key}={text}: not {kind}") from None
 
 
@@ -143,8 +147,10 @@ def load_config(path: str) -> dict:
     return data
 
 
-def build_params(args, base: dict | None = None) -> Params:
-    """The parameters of ``base``, then the preset, the config file, ``--set`` and ``--realizations`` on top."""
+def build_params(args, base: dict | None = None) -> tuple[Params, int | None]:
+    """The parameters of ``base``, then the preset, the config file and ``--set`` on top, and the
+    realization count: ``--realizations`` if given (it wins over an ``n_real`` of the others), else
+    the last ``n_real`` of those, else None (the run's default)."""
     values: dict = dict(base or {})
     if getattr(args, "preset", None):
         values.update(PRESETS[args.preset])
@@ -160,8 +166,8 @@ def build_params(args, base: dict | None = None) -> Params:
     if getattr(args, "realizations", None) is not None:
         if args.realizations < 1:
             raise UsageError(f"--realizations {args.realizations}: the number of realizations must be at least 1")
-        values["n_real"] = args.realizations
-    return Params(**values)
+        values[COUNT_KEY] = args.realizations
+    return read_params(values)
 
 
 def _structure(key: str) -> str | None:

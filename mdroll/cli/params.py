@@ -1,7 +1,8 @@
-"""``mdroll params``: every parameter and derived quantity, with units."""
+"""``mdroll params``: every parameter and derived quantity, with units, and the run's realization count."""
 
 from __future__ import annotations
 
+from ..ensemble.realizations import COUNT_KEY, DEFAULT_REALIZATIONS
 from .common import build_params, format_value, param_options
 
 UNITS = {"E": "Pa", "nu": "-", "R": "m", "m": "kg", "F_N": "N", "v0": "m/s", "L": "m", "dx": "m", "h0": "m",
@@ -14,9 +15,11 @@ def add_parser(sub) -> None:
 
 
 def execute(args) -> int:
-    p = build_params(args)
+    p, count = build_params(args)
     given = [(key, "-" if value in (None, "") else format_value(value), UNITS.get(key, ""), "")
              for key, value in p.as_dict().items()]
+    given.append((COUNT_KEY, str(DEFAULT_REALIZATIONS if count is None else count), UNITS[COUNT_KEY],
+                  "realizations of a run"))
     derived = [(key, format_value(value), unit, text) for key, (value, unit, text) in p.derived().items()]
     names = max(len(row[0]) for row in given + derived)
     values = max(len(row[1]) for row in given + derived)

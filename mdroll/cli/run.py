@@ -18,6 +18,7 @@ from ..ensemble.batching import check_count_fits, check_run_fits, realization_by
 from ..ensemble.checkpoint import CHECKPOINT, read_checkpoint
 from ..ensemble.lines import check_seed
 from ..ensemble.pipeline import run_ensemble
+from ..ensemble.realizations import DEFAULT_REALIZATIONS
 from ..ensemble.result import result_summary
 from ..ensemble.spec import EnsembleSpec
 from ..ensemble.validity import parameter_concerns, result_concerns
@@ -37,7 +38,8 @@ RUN_DEFAULTS = {"seed": 0, "algorithm": None, "mode": "decoupled", "boundary": "
 def add_parser(sub) -> None:
     p = sub.add_parser("run", help="run an ensemble and write spectra, summary and plots")
     param_options(p)
-    p.add_argument("--realizations", type=int, help="number of realizations (default n_real = 300)")
+    p.add_argument("--realizations", type=int, help=f"number of realizations (default {DEFAULT_REALIZATIONS}); "
+                   "wins over an n_real of --preset, --config or --set")
     p.add_argument("--first", type=int, help="index of the first realization (default 0): split an ensemble "
                    "across processes, then `mdroll merge`")
     p.add_argument("--seed", type=int, help="master seed (default 0)")
@@ -78,13 +80,13 @@ def execute(args) -> int:
         lock(out, "--resume")
         meta, _ = read_checkpoint(out / CHECKPOINT)
         # the checkpoint's run, with anything given on the command line on top (compared when resuming)
-        params = build_params(args, base=meta["params"])
+        params, count = build_params(args, base=meta["params"])
         settings = _settings(args, meta)
-        realizations = meta["realizations"] if args.realizations is None and args.first is None else _realizations(args, params)
+        realizations = meta["realizations"] if count is None and args.first is None else _realizations(args, count)
     else:
-        params = build_params(args)
+        params, count = build_params(args)
         settings = _settings(args, RUN_DEFAULTS)
-        realizations = _realizations(args, params)
+        realizations = _realizations(args, count)
     _check_settings(settings, args.batch)
     _refuse_outside_validity(args, params)
     memory = None
@@ -142,14 +144,12 @@ def _run_distributed(args) -> int:
 def _distributed_spec(args, base_params, base_settings: dict, base_indices) -> EnsembleSpec:
     """The spec of a distributed run: the command line over ``base_params``, ``base_settings``
     and ``base_indices`` (a resumed run's), else over the defaults."""
-    params = build_params(args, base=base_params)
+    params, count = build_params(args, base=base_params)
     settings = _settings(args, base_settings)
-    if base_indices is not None and args.realizations is None and args.first is None:
+    if base_indices is not None and count is None and args.first is None:
         indices = base_indices
     else:
-        indices = _realizations(args, params)
-    if not isinstance(indices, range):
-        raise UsageError(f"--realizations {args.realizations}: the number of realizations must be at least 1")
+        indices = _realizations(args, count)
     _refuse_outside_validity(args, params)
     return EnsembleSpec(params, first=indices.start, realizations=len(indices), **settings)
 
@@ -182,14 +182,15 @@ def _refuse_outside_validity(args, params) -> None:
         raise UsageError("; ".join(concerns) + " (--force-physics runs it anyway)")
 
 
-def _realizations(args, params):
-    count = params.n_real if args.realizations is None else args.realizations
+def _realizations(args, count: int | None) -> range:
+    """The run's realization indices: ``count`` (:data:`~mdroll.params.DEFAULT_REALIZATIONS` when
+    None) from ``--first``."""
+    count = DEFAULT_REALIZATIONS if count is None else count
     first = args.first or 0
     if first < 0:
         raise UsageError(f"--first {first}: the first realization index must be >= 0")
-    if count > 0:
-        check_count_fits(count)
-    return range(first, first + count) if count > 0 else count  # count <= 0: run_ensemble names the error
+    check_count_fits(count)
+    return range(first, first + count)
 
 
 def _positive_gib(value: float) -> int:

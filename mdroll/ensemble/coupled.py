@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..devices import warp
-from ..kernels.dynamics import COUPLED_LANES, INTEGRATORS, Modes, coupled_track, with_integrator
+from ..devices import is_cuda, warp
+from ..kernels.dynamics import COUPLED_LANES, COUPLED_WARPS, INTEGRATORS, Modes, coupled_track, with_integrator
 from ..params import ParameterError, Params
 from ..forces.indenter import contact_constants
 from ..forces.registry import coupled_entry
@@ -28,19 +28,36 @@ def contact_compliance(track: Track | None, wheel: Wheel | None, position: str =
     return (None if form.order == 0 and wheel.kind == "rigid" else form), wheel.kind == "rigid"
 
 
-def _modes(form: ModalForm, dt: float, device: str):
+def _modes(form: ModalForm | None, dt: float, device: str):
+    """The kernel's :class:`~mdroll.kernels.dynamics.Modes` of ``form`` stepped over dt (none
+    for the rigid contact point)."""
     wp = warp()
-    phi, gamma = form.discretize(dt)
     modes = Modes()
-    modes.phi_re, modes.phi_im, modes.gamma_re, modes.gamma_im = (
-        wp.array(np.ascontiguousarray(x), dtype=wp.float64, device=device) for x in (phi.real, phi.imag, gamma.real,
-                                                                                        gamma.imag))
-    modes.n = form.order
+    modes.n, modes.gain = 0, 0.0
+    if form is not None:
+        phi, gamma = form.discretize(dt)
+        modes.phi_re, modes.phi_im, modes.gamma_re, modes.gamma_im = (
+            wp.array(np.ascontiguousarray(x), dtype=wp.float64, device=device) for x in (phi.real, phi.imag,
+                                                                                            gamma.real, gamma.imag))
+        modes.n, modes.gain = form.order, float(2.0 * np.sum(gamma.real))
     return modes
 
 
+def coupled_layout(rows: int, device: str, warps: int | None = None) -> tuple[int, int]:
+    """``(blocks, block_dim)`` of a coupled launch of ``rows`` realizations: on CUDA ``warps``
+    realizations (warps of :data:`~mdroll.kernels.dynamics.COUPLED_LANES` lanes) a block,
+    default :data:`~mdroll.kernels.dynamics.COUPLED_WARPS`; on the CPU, where Warp runs a block
+    with one lane, one realization a block."""
+    warps = COUPLED_WARPS if warps is None else warps
+    if not 1 <= warps <= 32:
+        raise ParameterError(f"warps = {warps}: allowed are 1 to 32 realizations a block")
+    per_block = warps if is_cuda(device) else 1
+    return -(-rows // per_block), COUPLED_LANES * warps
+
+
 def coupled_series(prepared, params: Params, algorithm: str, device: str, d_start: float | None = None,
-                   force_offset: float = 0.0, integrator: str = "semi-implicit", compliance=(None, True)):
+                   force_offset: float = 0.0, integrator: str = "semi-implicit", compliance=(None, True),
+                   warps: int | None = None):
     """Force (N, less ``force_offset``) and acceleration d'' (m/s^2) series of eq 13 for
     prepared lines (:func:`~mdroll.forces.prepare.prepare_lines`), by the coupled kernel of
     the algorithm's registry entry; the wheel starts at indentation ``d_start`` (m, default d0)
@@ -49,7 +66,8 @@ def coupled_series(prepared, params: Params, algorithm: str, device: str, d_star
     ("forward-euler", the thesis's scheme, only for the coupling study). ``compliance``:
     :func:`contact_compliance`'s pair; with a state space the contact point moves
     (:func:`~mdroll.kernels.dynamics.coupled_track`, its modes stepped exactly over dt) and
-    ``accel`` is the wheel mass's (zero for a modal wheel)."""
+    ``accel`` is the wheel mass's (zero for a modal wheel). ``warps``: realizations a block on
+    CUDA (:func:`coupled_layout`)."""
     wp = warp()
     kernel, lines = coupled_entry(algorithm).coupled(prepared)
     kernel = with_integrator(kernel, integrator)
@@ -57,20 +75,21 @@ def coupled_series(prepared, params: Params, algorithm: str, device: str, d_star
     force = wp.empty((rows, prepared.steps), dtype=wp.float64, device=device)
     accel = wp.empty_like(force)
     form, rigid_mass = compliance
-    extra = []
+    state = None
     if form is not None:
         if integrator != INTEGRATORS[0]:
             raise ParameterError(f"integrator = {integrator!r} is not allowed with a compliant track or wheel: "
                                  f"use {INTEGRATORS[0]!r}")
         kernel = coupled_track(kernel)
-        extra = [_modes(form, params.dt, device), wp.zeros((rows, max(form.order, 1)), dtype=wp.vec2d, device=device)]
+        state = wp.zeros((rows, form.order), dtype=wp.vec2d, device=device)
+    blocks, block_dim = coupled_layout(rows, device, warps)
     wp.launch_tiled(
         kernel,
-        dim=[rows],
-        block_dim=COUPLED_LANES,
-        inputs=[lines, contact_constants(params), prepared.first, prepared.steps,
+        dim=[blocks],
+        block_dim=block_dim,
+        inputs=[lines, contact_constants(params), rows, prepared.first, prepared.steps,
                 params.d0 if d_start is None else d_start, params.F_N, 1.0 / params.m if rigid_mass else 0.0,
-                params.dt, force_offset, force, accel, *extra],
+                params.dt, force_offset, force, accel, _modes(form, params.dt, device), state],
         device=device,
     )
     return force, accel

@@ -14,6 +14,7 @@ from ..params import Params
 from ..roughness.kinds import check_spectrum
 from .. import buffers
 from .batching import check_count_fits
+from .realizations import check_count
 from ..fft import irfft_rows
 
 #: Modes a thread of the CPU's random spectrum makes (:func:`mdroll.kernels.lines.random_phase_spans`).
@@ -25,10 +26,9 @@ def realization_indices(realizations) -> np.ndarray:
     if isinstance(realizations, (bool, np.bool_)):
         raise ParameterError(f"realizations must be an int or a sequence of ints, got {realizations!r}")
     if isinstance(realizations, (int, np.integer)):
-        if realizations < 1:
-            raise ParameterError(f"realizations = {realizations!r} is not allowed: it must be at least 1")
-        check_count_fits(int(realizations))
-        return np.arange(int(realizations), dtype=np.int64)
+        count = check_count("realizations", realizations)
+        check_count_fits(count)
+        return np.arange(count, dtype=np.int64)
     if not isinstance(realizations, (Sequence, np.ndarray, range)):
         raise ParameterError(f"realizations must be an int or a sequence of ints, got {type(realizations).__name__}")
     if isinstance(realizations, range):

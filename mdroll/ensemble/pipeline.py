@@ -2,16 +2,15 @@
 
 :func:`run_ensemble` composes the parts, each in its own module: the force algorithms
 (:mod:`mdroll.forces`), the coupled dynamics (:mod:`.coupled`), the spectra (:mod:`.psd`), batch
-sizing (:mod:`.batching`), the accumulated totals and their checkpoint (:mod:`.checkpoint`) and
-the result (:mod:`.result`). Here: the batch loop, its stage clock and the progress bar.
+sizing (:mod:`.batching`), the accumulated totals and their checkpoint (:mod:`.checkpoint`), the
+CPU's worker threads, the stage clock and the progress bar (:mod:`.workers`) and the result
+(:mod:`.result`). Here: the arguments' checks and the batch loop.
 """
 
 from __future__ import annotations
 
 import contextlib
 import dataclasses
-import functools
-import threading
 import time
 from pathlib import Path
 
@@ -37,6 +36,8 @@ from ..roughness.kinds import check_spectrum
 from ..roughness.line_grid import from_params, line_rms
 from .result import EnsembleResult
 from .psd import psd_moments_of_batch, series_sums, to_host
+from .realizations import DEFAULT_REALIZATIONS
+from .workers import CpuWorkers, StageClock, progress_bar
 
 MODES = ("decoupled", "coupled")
 #: The open-boundary wheel range of an ensemble is set from d0 + H_BOUND_SIGMAS * (the lines' RMS), not from
@@ -45,8 +46,9 @@ H_BOUND_SIGMAS = 6.0
 #: With a checkpoint, batches are sized so that one takes about this long (s): a kill loses at
 #: most about this much work.
 CHECKPOINT_SECONDS = 30.0
-#: Realizations a CPU thread runs through the stages at once (:class:`_CpuWorkers`): few, so
-#: that its arrays stay small and are reused (docs/performance.md, CPU).
+#: Realizations a CPU thread runs through the stages at once
+#: (:class:`~mdroll.ensemble.workers.CpuWorkers`): few, so that its arrays stay small and are
+#: reused (docs/performance.md, CPU).
 CPU_CHUNK = 2
 
 
@@ -80,8 +82,8 @@ def run_ensemble(
 ) -> EnsembleResult:
     """Run an ensemble and return its averaged force and acceleration spectra.
 
-    Realizations (``params.n_real`` when None; an int R for 0..R-1, or a sequence of indices)
-    are processed in batches (sized from free device or host memory, capped by
+    Realizations (:data:`~mdroll.ensemble.realizations.DEFAULT_REALIZATIONS` when None; an int R
+    for 0..R-1, or a sequence of indices) are processed in batches (sized from free device or host memory, capped by
     ``memory_limit`` bytes, unless ``batch`` is given): rough lines (section 3) -> force at d0
     by ``algorithm`` and the wheel on the linearized contact spring (``mode="decoupled"``,
     section 5.1), or the coupled dynamics of eq 13 (``mode="coupled"``; refused for an
@@ -111,8 +113,8 @@ def run_ensemble(
     parts of :data:`CPU_CHUNK` through lines, force and spectra, each part on the next free one
     of this many Python threads (Warp's CPU launches and FFTW release the GIL), into memory each
     thread keeps from part to part; the parts' moments are merged in their order, so the spectra
-    do not depend on the number of threads at all (:class:`_CpuWorkers`). On CUDA the device runs
-    the batch as a whole.
+    do not depend on the number of threads at all (:class:`~mdroll.ensemble.workers.CpuWorkers`).
+    On CUDA the device runs the batch as a whole.
 
     Parameters
     ----------
@@ -121,7 +123,9 @@ def run_ensemble(
     seed : int
         Master seed in [0, 2^64); realization j's line depends on (seed, j) alone.
     realizations : None, int or sequence of int
-        ``params.n_real`` when None, R for indices 0..R-1, or the indices themselves.
+        The run's realizations: R for indices 0..R-1, or the indices themselves; None:
+        :data:`~mdroll.ensemble.realizations.DEFAULT_REALIZATIONS`. The result's ``n_real`` is
+        their count.
     algorithm : str or None
         Force algorithm (:data:`mdroll.ALGORITHMS`); None: the mode's default.
     mode : {"decoupled", "coupled"}
@@ -177,7 +181,7 @@ def run_ensemble(
         raise ParameterError("track and wheel other than rigid are not allowed with mode = 'decoupled': "
                              "use mode = 'coupled' (the frequency-domain chain is mdroll.track.linear_chain)")
     seed = check_seed(seed)
-    indices = realization_indices(params.n_real if realizations is None else realizations)
+    indices = realization_indices(DEFAULT_REALIZATIONS if realizations is None else realizations)
     leaf_size = check_integer("leaf_size", leaf_size, 1, "springs")
     progress, window, resume = (check_flag(name, value) for name, value in
                                 (("progress", progress), ("window", window), ("resume", resume)))
@@ -189,7 +193,7 @@ def run_ensemble(
     check_run_fits(params, device, memory_limit)
     threads = 1 if is_cuda(device) else (cpu_cores() if threads is None else check_integer("threads", threads, 1, "threads"))
 
-    key = {"params": params.physical_dict(), "seed": seed, "realizations": indices.tolist(), "algorithm": algorithm,
+    key = {"params": params.as_dict(), "seed": seed, "realizations": indices.tolist(), "algorithm": algorithm,
            "mode": mode, "boundary": boundary, "window": window, "leaf_size": leaf_size}
     if integrator != INTEGRATORS[0]:
         key["integrator"] = integrator
@@ -216,7 +220,7 @@ def run_ensemble(
     bar = progress_bar(len(indices), progress)
     bar.update(totals.done)
 
-    stage = _StageClock(device, timings)
+    stage = StageClock(device, timings)
     decoupled = mode == "decoupled"
 
     def series_moments(idx, clock, serial=contextlib.nullcontext()):
@@ -244,7 +248,7 @@ def run_ensemble(
     # with the size its last batch planned, so that its batches, and the rounding of their
     # merged moments, are the uninterrupted run's
     size = batch if checkpoint is None else min(batch, totals.next_batch)
-    workers = None if is_cuda(device) else _CpuWorkers(threads, timings)
+    workers = None if is_cuda(device) else CpuWorkers(threads, timings)
     try:
         while start < len(indices):
             began = time.perf_counter()
@@ -295,7 +299,7 @@ def run_ensemble(
     n = len(indices)
     return EnsembleResult(
         q=q, omega=omega, force_psd=force_psd, force_psd_stderr=force_psd_stderr, accel_psd=accel_psd,
-        accel_psd_stderr=accel_psd_stderr, n_real=n, params=params.replace(n_real=n), seed=seed, algorithm=algorithm,
+        accel_psd_stderr=accel_psd_stderr, n_real=n, params=params, seed=seed, algorithm=algorithm,
         mode=mode, boundary=boundary, device=device, steps=totals.steps, force_mean=totals.force_mean_sum / n,
         force_rms=totals.force_rms_sum / n, contact_lost_steps=totals.lost, timings=timings,
         batch=totals.largest_batch, realizations=indices.tolist(), window=bool(window),
@@ -305,122 +309,3 @@ def run_ensemble(
 def _cpu_parts(idx: np.ndarray, size: int) -> list[np.ndarray]:
     """``idx`` in consecutive parts of ``size`` realizations (the last may be shorter)."""
     return [idx[i:i + size] for i in range(0, len(idx), size)]
-
-
-class _CpuWorkers:
-    """The CPU path's threads: each part of a batch (:data:`CPU_CHUNK` realizations) is run
-    through lines, force and spectra by the next free one of ``threads`` Python threads (Warp's
-    CPU launches and FFTW release the GIL; each thread's FFTs take one FFTW thread), into
-    arrays the thread keeps from part to part (:mod:`mdroll.buffers`); the parts' moments are merged
-    in their order, so the result does not depend on the number of threads or on which thread
-    ran which part.
-
-    ``serial`` is a lock that one thread holds at a time: Warp 1.19 keeps the shared memory of a
-    CPU tile kernel (the coupled dynamics; the sweep's stream, which only CUDA runs by default)
-    behind one pointer per module, so two of them must not run at once (they crashed); the
-    decoupled force kernels are plain launches on the CPU. ``loading`` is held through each
-    thread's first part: Warp 1.19 loads a module's CPU code at its first launch without a
-    lock, and two threads loading the same module at once can free the code the other is
-    running (segfaults in the plugin's and the studies' tests, now and then); after one thread's
-    first part every module of the path is loaded. Each stage's time is the mean over the
-    threads (they overlap), added to ``timings`` by :meth:`add_timings`.
-    """
-
-    def __init__(self, threads: int, timings: dict):
-        from concurrent.futures import ThreadPoolExecutor
-
-        self.pool = ThreadPoolExecutor(threads) if threads > 1 else None
-        self.timings = timings
-        self.serial = threading.Lock()
-        self.loading = threading.Lock()
-        self.local = threading.local()
-        self.clocks = []
-
-    def map(self, work, parts):
-        """``work(part, clock, serial)`` of each part, in the parts' order, as they finish."""
-        run = functools.partial(self._run, work)
-        return self.pool.map(run, parts) if self.pool else map(run, parts)
-
-    def _run(self, work, part):
-        from ..fft import fftw_threads
-
-        state = self.local.__dict__
-        first = not state
-        if first:
-            state["buffers"] = buffers.Buffers()
-            state["clock"] = _StageClock("cpu", dict.fromkeys(self.timings, 0.0))
-            self.clocks.append(state["clock"])
-        with fftw_threads(1), buffers.reused(state["buffers"]):
-            if not first:
-                return work(part, state["clock"], self.serial)
-            with self.loading:
-                return work(part, state["clock"], self.serial)
-
-    def add_timings(self) -> None:
-        """Add each stage's mean time over the threads since the last call to ``timings``."""
-        for name in self.timings:
-            self.timings[name] += sum(clock.timings[name] for clock in self.clocks) / max(len(self.clocks), 1)
-        for clock in self.clocks:
-            clock.timings = dict.fromkeys(self.timings, 0.0)
-
-    def close(self) -> None:
-        if self.pool:
-            self.pool.shutdown(cancel_futures=True)
-
-
-class _StageClock:
-    """Seconds per stage: ``clock(name, fn)`` runs ``fn`` and adds its time to ``timings[name]``.
-
-    On CUDA each stage is bracketed by two events on the device's stream, read by :meth:`settle`
-    after the batch's one wait: the host queues a stage while the device still runs the one
-    before (synchronizing around every stage would leave the device idle through all the host
-    work between launches). A stage's time
-    is then the device's, from reaching the stage's first command to finishing its last. On
-    the CPU launches are synchronous: wall time.
-    """
-
-    def __init__(self, device: str, timings: dict):
-        self.device = device
-        self.timings = timings
-        self.pending = []
-
-    def __call__(self, name: str, fn):
-        if not is_cuda(self.device):
-            t0 = time.perf_counter()
-            out = fn()
-            self.timings[name] += time.perf_counter() - t0
-            return out
-        start = self._event()
-        out = fn()
-        self.pending.append((name, start, self._event()))
-        return out
-
-    def _event(self):
-        wp = warp()
-        event = wp.Event(self.device, enable_timing=True)
-        wp.get_stream(self.device).record_event(event)
-        return event
-
-    def settle(self) -> None:
-        """Add the recorded stages' times (waits for the last of them)."""
-        wp = warp()
-        for name, start, end in self.pending:
-            self.timings[name] += wp.get_event_elapsed_time(start, end) / 1e3
-        self.pending.clear()
-
-
-class _NoBar:
-    def update(self, n):
-        pass
-
-    def close(self):
-        pass
-
-
-def progress_bar(total: int, enabled: bool, desc: str = "realizations"):
-    """A tqdm bar over realizations (done, rate, ETA), or a silent stand-in."""
-    if not enabled:
-        return _NoBar()
-    from tqdm.auto import tqdm
-
-    return tqdm(total=total, unit="real", desc=desc, dynamic_ncols=True)

@@ -14,6 +14,7 @@ from ..files import atomic_write
 from ..errors import ParameterError
 from ..params import Params
 from .psd import RunningMoments, wavenumbers
+from .realizations import COUNT_KEY, read_params
 from .resolution import estimator_name, resolution
 
 #: The stages of a run whose times a result reports, in the order a batch passes them.
@@ -52,7 +53,8 @@ class EnsembleResult:
     timings : seconds per stage (:data:`STAGES`): on CUDA the device's time, from CUDA events
         around each stage; on the CPU wall time.
     batch : the largest batch (realizations at once) the run used; realizations : the
-        realization indices, in order. n_real: their count (``params.n_real`` equals it).
+        realization indices, in order. n_real: their count, the run's (``params`` holds the
+        physics and the grid alone).
     window : whether a Hann window was applied before the FFTs (None: unknown, a file written
         before the window was recorded); results differing in it are never merged.
     resolution : the bins this record and estimator cannot resolve (:mod:`mdroll.ensemble.resolution`).
@@ -89,13 +91,13 @@ class EnsembleResult:
         return resolution(self.omega, self.force_psd, self.accel_psd, self.params.omega_0, self.window, self.mode)
 
     def save(self, path) -> Path:
-        """Write an ``.npz`` with the spectra, the parameters (:meth:`Params.physical_dict`; the
-        count is ``n_real``) and the provenance, atomically (:func:`mdroll.files.atomic_write`).
+        """Write an ``.npz`` with the spectra, the parameters (:meth:`Params.as_dict`; the
+        count is ``n_real``, beside them) and the provenance, atomically (:func:`mdroll.files.atomic_write`).
         A name without ``.npz`` gets it appended, as :func:`numpy.savez` does."""
         path = Path(path)
         if path.suffix != ".npz":
             path = path.with_name(path.name + ".npz")
-        meta = {"params": self.params.physical_dict(), **{k: getattr(self, k) for k in RESULT_META},
+        meta = {"params": self.params.as_dict(), **{k: getattr(self, k) for k in RESULT_META},
                 "mdroll_version": __version__}
         flags = self.resolution
         masks = {f"{quantity}_unresolved": flags.mask(quantity) for quantity in ("force", "accel")}
@@ -106,7 +108,9 @@ class EnsembleResult:
     @classmethod
     def load(cls, path) -> "EnsembleResult":
         """The result saved at ``path`` by :meth:`save`; anything else (a truncated or foreign
-        file, a checkpoint) is refused with a :class:`ParameterError` naming the file."""
+        file, a checkpoint) is refused with a :class:`ParameterError` naming the file. A file that
+        holds the count inside its parameters (``n_real``, as files once did) is read with it as
+        the result's ``n_real``."""
         try:
             with np.load(path, allow_pickle=False) as data:
                 meta = json.loads(str(data["meta"]))
@@ -116,7 +120,9 @@ class EnsembleResult:
                 arrays = {k: data[k] for k in RESULT_ARRAYS}
             meta.setdefault("window", None)  # files from before the window was recorded
             meta.setdefault("mdroll_version", "unknown")
-            params = Params(**{**meta.pop("params"), "n_real": meta["n_real"]})
+            params, count = read_params(meta.pop("params"))
+            if count is not None and meta.setdefault("n_real", count) != count:
+                raise ParameterError(f"{COUNT_KEY} = {count} in its parameters but {meta['n_real']!r} beside them")
             result = cls(params=params, **arrays, **meta)
         except ParameterError as exc:
             raise ParameterError(f"{path}: {exc}") from None
@@ -141,9 +147,9 @@ class EnsembleResult:
                 raise ParameterError(f"results: item {number} is a {type(other).__name__}, not an mdroll.EnsembleResult")
             _check_content(other, f"result {number}")
         first = results[0]
-        physics = first.params.physical_dict()
+        physics = first.params.as_dict()
         for number, other in enumerate(results[1:], start=2):
-            theirs = other.params.physical_dict()
+            theirs = other.params.as_dict()
             differ = [f"{k}: {v!r} vs {theirs[k]!r}" for k, v in physics.items() if theirs[k] != v]
             differ += [f"{k}: {getattr(first, k)!r} vs {getattr(other, k)!r}" for k in MERGE_SAME
                        if getattr(other, k) != getattr(first, k)]
@@ -155,9 +161,10 @@ class EnsembleResult:
             if not compatible_versions(other.mdroll_version, first.mdroll_version):
                 raise ParameterError(f"cannot merge results 1 and {number}: written by mdroll {first.mdroll_version} "
                                      f"and {other.mdroll_version}, whose spectra may differ; rerun one of them")
-        indices = [int(i) for r in results for i in r.realizations]
-        if len(set(indices)) != len(indices):
-            shared = sorted({i for i in indices if indices.count(i) > 1})[:5]
+        indices = np.concatenate([np.asarray(r.realizations, dtype=np.int64) for r in results])
+        unique, counts = np.unique(indices, return_counts=True)
+        if unique.size != indices.size:
+            shared = unique[counts > 1][:5].tolist()
             raise ParameterError(f"cannot merge results that share realizations {shared} (each would count twice)")
         moments = {}
         for name in ("force_psd", "accel_psd"):
@@ -170,13 +177,13 @@ class EnsembleResult:
         return cls(
             q=first.q, omega=first.omega, force_psd=moments["force_psd"].mean, force_psd_stderr=moments["force_psd"].stderr,
             accel_psd=moments["accel_psd"].mean, accel_psd_stderr=moments["accel_psd"].stderr, n_real=n,
-            params=first.params.replace(n_real=n), seed=first.seed, algorithm=first.algorithm, mode=first.mode, boundary=first.boundary,
+            params=first.params, seed=first.seed, algorithm=first.algorithm, mode=first.mode, boundary=first.boundary,
             device=",".join(sorted({r.device for r in results})), steps=first.steps,
             force_mean=sum(r.force_mean * r.n_real for r in results) / n,
             force_rms=sum(r.force_rms * r.n_real for r in results) / n,
             contact_lost_steps=sum(r.contact_lost_steps for r in results),
             timings={k: sum(r.timings.get(k, 0.0) for r in results) for k in STAGES},
-            batch=max(r.batch for r in results), realizations=indices, window=first.window,
+            batch=max(r.batch for r in results), realizations=indices.tolist(), window=first.window,
         )
 
 
@@ -192,8 +199,9 @@ def _check_content(result: EnsembleResult, where) -> None:
         count = len(indices) if isinstance(indices, (list, tuple, range)) else "no"
         raise ParameterError(f"{where}: its realization list has {count} indices but n_real = {n}; the file is "
                              "damaged or was edited (a merge needs each part's realizations)")
-    if any(isinstance(i, bool) or not isinstance(i, (int, np.integer)) or i < 0 for i in indices) \
-            or len(set(indices)) != n:
+    kinds = set(map(type, indices))  # vectorized checks: a merge may hold ~10^5 indices
+    if any(k is bool or not issubclass(k, (int, np.integer)) for k in kinds) \
+            or min(indices, default=0) < 0 or np.unique(np.asarray(indices, dtype=np.int64)).size != n:
         raise ParameterError(f"{where}: its realization list must hold {n} distinct integers >= 0")
     steps = result.steps
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 2:
@@ -221,7 +229,7 @@ def result_summary(result: EnsembleResult) -> dict:
     which and why), RMS force, timings, device, mdroll version."""
     p = result.params
     return {
-        "params": p.physical_dict(),
+        "params": p.as_dict(),
         "derived": {k: {"value": v, "unit": u} for k, (v, u, _) in p.derived().items()},
         "n_real": result.n_real, "seed": result.seed, "algorithm": result.algorithm, "mode": result.mode,
         "boundary": result.boundary, "window": result.window, "estimator": estimator_name(result.window),

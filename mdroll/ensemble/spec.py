@@ -21,6 +21,7 @@ from ..errors import ParameterError
 from ..params import Params
 from ..roughness.kinds import check_spectrum
 from .lines import check_seed
+from .realizations import read_params
 from ..forces.registry import default_algorithm
 
 
@@ -96,11 +97,13 @@ class EnsembleSpec:
 
     @classmethod
     def from_dict(cls, data: dict) -> "EnsembleSpec":
+        """The spec of :meth:`as_dict`'s dict; a count inside its parameters (``n_real``, as
+        specs once held it) is dropped: the spec's ``realizations`` name its realizations."""
         from ..roughness.line_grid import from_description
 
         data = dict(data)
         roughness = data.pop("roughness", None)
-        return cls(params=Params(**data.pop("params")),
+        return cls(params=read_params(data.pop("params"))[0],
                    roughness=None if roughness is None else from_description(roughness), **data)
 
     def key(self) -> str:

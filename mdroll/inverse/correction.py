@@ -65,7 +65,7 @@ LARGEST_CONTACT = 0.1
 TOLERANCE = 0.1
 
 
-def simulation_params(estimates: dict, sim: dict, passes: int) -> Params:
+def simulation_params(estimates: dict, sim: dict) -> Params:
     """The Params of a simulation at ``estimates`` (SI, with v0): E from E* with the simulation's nu
     (eq 1-2), F_N = 4 a^3 E* / (3 R) (eq 14-15), the simulation's L and dx, q_min on the line's
     grid (the nearest 2 pi k / L)."""
@@ -75,7 +75,7 @@ def simulation_params(estimates: dict, sim: dict, passes: int) -> Params:
     dq = TWO_PI / (round(sim["L"] / sim["dx"]) * sim["dx"])
     return Params(E=E, nu=sim["nu"], R=e["R"], m=e["m"], F_N=load_times_radius(e["a"], e["E_star"]) / e["R"],
                   v0=e["v0"], L=sim["L"], dx=sim["dx"], h0=e["h0"], H=e["H"],
-                  q_min=max(1, round(e["q_min"] / dq)) * dq, n_real=passes)
+                  q_min=max(1, round(e["q_min"] / dq)) * dq)
 
 
 def knots(band_q, octaves: float = OCTAVES) -> tuple:
@@ -132,7 +132,7 @@ def correction_spec(spectrum, estimates: dict, passes: int = PASSES, seed: int =
     if estimates["a"] > LARGEST_CONTACT * estimates["R"]:
         raise ParameterError(f"the estimate a = {estimates['a']:.4g} m exceeds {LARGEST_CONTACT:g} R: beyond Hertz's "
                              "small contact, nothing to simulate")
-    return EnsembleSpec(simulation_params(estimates, sim, passes), seed=seed + int(sim.get("seed", 0)),
+    return EnsembleSpec(simulation_params(estimates, sim), seed=seed + int(sim.get("seed", 0)),
                         realizations=passes, boundary=sim.get("boundary", "open"), mode=sim.get("mode", "decoupled"),
                         algorithm=sim.get("algorithm"), window=spectrum.window)
 

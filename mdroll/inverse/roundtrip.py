@@ -104,7 +104,7 @@ def bootstrap(spectrum, result, replicates: int, device: str = "auto", seed: int
     if not sim:
         raise ParameterError("the bootstrap simulates at the estimate and needs the simulation's L and dx: it is "
                              "available for mdroll spectra only")
-    params = simulation_params({**result.estimates, "v0": result.known["v0"]}, sim, result.passes)
+    params = simulation_params({**result.estimates, "v0": result.known["v0"]}, sim)
     specs = [EnsembleSpec(params, seed=seed + i, realizations=result.passes, boundary=sim["boundary"],
                           mode=sim["mode"], algorithm=sim["algorithm"], window=spectrum.window)
              for i in range(replicates)]
@@ -129,7 +129,7 @@ def bootstrap(spectrum, result, replicates: int, device: str = "auto", seed: int
 
 
 def _round_trip_spec(truth: Params, passes: int, seed: int, boundary: str = "open", window: bool = True):
-    return EnsembleSpec(truth.replace(n_real=passes), seed=seed, realizations=passes, boundary=boundary, window=window)
+    return EnsembleSpec(truth, seed=seed, realizations=passes, boundary=boundary, window=window)
 
 
 def round_trip(truth: Params, passes: int, seed: int = 0, device: str = "auto", known=KNOWN, band=None,
@@ -206,7 +206,7 @@ def realistic_case(truth: Params, passes: int, seed: int, device: str, folder, n
     dx, nu: what the correction's ensembles need), which moved H by +0.010 to +0.089 (docs/inverse.md).
     ``discrepancy``: :func:`~mdroll.inverse.fit`'s (None: its default, :data:`~mdroll.inverse.fit.DISCREPANCY`
     for the closed form)."""
-    spec = EnsembleSpec(truth.replace(n_real=passes), seed=seed, realizations=passes, boundary="open", window=True)
+    spec = EnsembleSpec(truth, seed=seed, realizations=passes, boundary="open", window=True)
     ensemble = run_specs([spec], device=device)[0]
     spectrum = from_result(ensemble, "accel", window=True)
     band = (TWO_PI * 20.0, TWO_PI * 20e3)

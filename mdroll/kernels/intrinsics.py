@@ -1,5 +1,5 @@
 """CUDA intrinsics for the kernels, in one place: shared-memory atomics, loads and stores by
-address, barriers, warp shuffles, an L2 prefetch and the GPU's global timer.
+address, barriers, warp shuffles, L2 and L1 prefetches and the GPU's global timer.
 
 Each is a ``wp.func_native`` with a CPU fallback where the kernels also run on the CPU (there a
 block is one lane: a warp's barrier or shuffle does nothing, a block's barrier is Warp's CPU
@@ -93,6 +93,17 @@ def prefetch_float(base: wp.uint64, i: int):
     ...
 
 
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+asm volatile("prefetch.global.L1 [%0];" :: "l"(((const double*)base) + i));
+#endif
+""")
+def prefetch_float_near(base: wp.uint64, i: int):
+    """Ask the multiprocessor's L1 cache for the 128-byte line holding ``base[i]`` (CUDA;
+    nothing on the CPU)."""
+    ...
+
+
 @wp.func_native("""((double*)base)[i] = value;""")
 def store_float(base: wp.uint64, i: int, value: wp.float64):
     """``base[i] = value`` for a float64 in global memory."""
@@ -156,6 +167,41 @@ return value;
 """)
 def shuffle_xor_float(value: wp.float64, mask: int) -> wp.float64:
     """The float64 of lane ``lane ^ mask`` of the warp (CUDA; every lane of the warp must call)."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+#pragma unroll
+for (int mask = 16; mask > 0; mask >>= 1) {
+    value += __shfl_xor_sync(0xffffffffu, value, mask);
+}
+#endif
+return value;
+""")
+def warp_sum_float(value: wp.float64) -> wp.float64:
+    """The sum of a float64 over the 32 lanes of the warp, in every lane (CUDA; the value itself
+    on the CPU, where a block is one lane; every lane of the warp must call): a butterfly of
+    shuffles, each level adding the same two numbers in both lanes of a pair, in either order,
+    so that every lane holds the same bits."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+double a = value.c[0], b = value.c[1];
+#pragma unroll
+for (int mask = 16; mask > 0; mask >>= 1) {
+    a += __shfl_xor_sync(0xffffffffu, a, mask);
+    b += __shfl_xor_sync(0xffffffffu, b, mask);
+}
+return wp::vec2d(a, b);
+#else
+return value;
+#endif
+""")
+def warp_sum_float_pair(value: wp.vec2d) -> wp.vec2d:
+    """:func:`warp_sum_float` of both components, interleaved (the second adds little latency)."""
     ...
 
 

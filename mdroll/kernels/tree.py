@@ -55,6 +55,7 @@ from .common import (
     tree_stack,
 )
 from .dynamics import coupled_dynamics
+from .sweep_coupled import banded_force, prefetch_ahead
 
 #: Nodes are pushed as ``(index << LEVEL_BITS) | level`` (levels < 2^LEVEL_BITS = 32).
 LEVEL_BITS = wp.constant(5)
@@ -479,8 +480,19 @@ def contact_force_tree(
 
 @wp.func
 def tree_lane_force(lines: TreeLines, r: int, c: int, d: wp.float64, contact: Contact, lane: int, lanes: int) -> wp.float64:
-    """This lane's part (N) of F (eq 11-12) with the wheel at spring c of row r, indentation d (m):
-    lane 0 the core, each lane its slice of the bands (:func:`force_tree`)."""
+    """This lane's part (N) of F (eq 11-12) with the wheel at spring c of row r, indentation d (m).
+    As the main kernel, by the band's width from the root bounds: up to ``band_limit`` springs a
+    side, the core in closed form and the bands spring by spring (:func:`banded_force`, the
+    sweep's coupled step, its springs prefetched); wider, lane 0 the core and each lane its
+    slice of the bands by traversal (:func:`force_tree`)."""
+    prefetch_ahead(lines.h, lines.prefix, r, c, lines.n, lane)
+    root = lines.nodes[r, lines.level_offsets[lines.top_level]]
+    outer = reach_strict(d + root[1], contact.curvature)
+    core = reach_strict(d + root[0], contact.curvature)
+    if outer < 0:
+        return wp.float64(0.0)
+    if outer - wp.max(core, 0) <= lines.band_limit:
+        return banded_force(lines.h, lines.prefix, r, lines.n, c, d, core, outer, contact, lane, lanes)
     return contact.k_spring * force_tree(lines.h, lines.prefix, lines.nodes, lines.level_offsets, lines.top_level,
                                          lines.leaf_size, r, lines.n, c, d, contact.curvature, lane, lanes)
 

@@ -40,18 +40,23 @@ EXACT_TOLERANCE = 1e-12
 
 @dataclass(frozen=True)
 class ValidationSize:
-    """The checks' parameters on one rung of the ladder (:data:`SIZES`): ``base`` is the periodic validation ensemble (its n_real realizations),
-    ``coupled`` the open-boundary ensemble of the dynamics checks (resolution 2 pi v0 / L)."""
+    """The checks' parameters on one rung of the ladder (:data:`SIZES`): ``base`` is the periodic
+    validation ensemble of ``base_realizations`` realizations, ``coupled`` the open-boundary ensemble
+    of the dynamics checks (resolution 2 pi v0 / L) of ``coupled_realizations``."""
 
     base: Params
+    base_realizations: int
     coupled: Params
+    coupled_realizations: int
 
 
 SIZES = Ladder(
     # a CPU in CI: 20 um springs (253 per contact radius, a/dx >> 10), short lines
-    quick=ValidationSize(base=Params(L=0.5, dx=20e-6, n_real=192), coupled=Params(L=5.24288, dx=20e-6, n_real=8)),
+    quick=ValidationSize(base=Params(L=0.5, dx=20e-6), base_realizations=192, coupled=Params(L=5.24288, dx=20e-6),
+                         coupled_realizations=8),
     # thesis scale, 300 x 2^20 points at the thesis's dx = 5 um (GPU)
-    full=ValidationSize(base=Params(L=5.24288, n_real=300), coupled=Params(L=5.24288, n_real=300)),
+    full=ValidationSize(base=Params(L=5.24288), base_realizations=300, coupled=Params(L=5.24288),
+                        coupled_realizations=300),
 )
 
 
@@ -67,7 +72,8 @@ class Context:
         """The periodic decoupled ensemble of ``size.base`` (with ``changes`` to its parameters),
         without a window: a periodic record's bins are the line's own modes, which eq 39 predicts bin by bin."""
         p = self.size.base.replace(**changes)
-        return EnsembleSpec(p, self.seed, 0, p.n_real, algorithm, "decoupled", "periodic", window=False)
+        return EnsembleSpec(p, self.seed, 0, self.size.base_realizations, algorithm, "decoupled", "periodic",
+                            window=False)
 
     def variant(self, **changes) -> EnsembleSpec:
         """The base ensemble with some parameters changed, by the tree (equal to the direct sum to
@@ -80,7 +86,7 @@ class Context:
         """The open-boundary ensemble of ``size.coupled`` by the tree, ``mode`` decoupled or coupled,
         with the thesis's estimator (no window), whose resonance section 5.1 compares."""
         p = self.size.coupled
-        return EnsembleSpec(p, self.seed, 0, p.n_real, "tree", mode, "open", window=False)
+        return EnsembleSpec(p, self.seed, 0, self.size.coupled_realizations, "tree", mode, "open", window=False)
 
 
 def eq40_psd(q, p: Params):
@@ -114,7 +120,7 @@ def check_exact_algorithms(ctx: Context) -> list[CheckResult]:
         q = ctx.source.result(spec).q
         out.append(CheckResult(
             f"{name} == {EXACT_REFERENCE}", "section 4", diff / p.F_N, 0.0, EXACT_TOLERANCE, "absolute", "F_N",
-            f"max |F_{name} - F_{EXACT_REFERENCE}| = {diff:.3g} N over {p.n_real} x {p.n_points} steps",
+            f"max |F_{name} - F_{EXACT_REFERENCE}| = {diff:.3g} N over {spec.realizations} x {p.n_points} steps",
             plot=spectrum_plot(q, curves)))
     return out
 

@@ -24,7 +24,8 @@ key                      meaning
 ``unit``, ``note``
 ``[check.spec]``         ``seed``, ``first``, ``realizations``, ``algorithm``, ``mode``,
                          ``boundary``, ``window`` of :class:`mdroll.EnsembleSpec`, and a table
-                         ``[check.spec.params]`` of :class:`mdroll.Params` fields (SI units)
+                         ``[check.spec.params]`` of :class:`mdroll.Params` fields (SI units);
+                         an ``n_real`` there is the spec's ``realizations``
 ``[check.reference]``    optional second ensemble for a scalar ratio: changes to ``spec``, same keys
 =======================  =========================================================================
 
@@ -45,7 +46,7 @@ from importlib.metadata import entry_points
 from ..ensemble.spec import EnsembleSpec
 from ..files import read_toml
 from ..errors import ParameterError, PredictionError
-from ..params import Params
+from ..ensemble.realizations import COUNT_KEY, read_params
 from .api import Band, Check, CheckResult
 from .checks import CHECKS, SIZES, Context, ValidationSize
 from .ensembles import EnsembleSource
@@ -138,7 +139,12 @@ def _spec(table: dict, where: str) -> EnsembleSpec:
     if unknown:
         raise ParameterError(f"{where}: unknown key(s) {sorted(unknown)}; allowed: {', '.join(sorted(SPEC_KEYS))}")
     try:
-        return EnsembleSpec(**{**table, "params": Params(**table.get("params", {}))})
+        params, count = read_params(table.get("params", {}))
+        table = {**table, "params": params}
+        if count is not None and table.setdefault("realizations", count) != count:
+            raise ParameterError(f"{where}: realizations = {table['realizations']!r} and {COUNT_KEY} = {count} in "
+                                 "its params differ; give one of them")
+        return EnsembleSpec(**table)
     except TypeError:
         raise ParameterError(f"{where}: a value of the wrong type (seed, first, realizations: integers; algorithm, "
                              "mode, boundary: texts; window: true or false; params: a table)") from None
@@ -172,6 +178,8 @@ def checks_from_toml(path) -> list[Check]:
             merged = {**{k: v for k, v in spec.as_dict().items() if k in SPEC_KEYS},
                       **{k: v for k, v in reference.items() if k != "params"}}
             merged["params"] = {**spec.params.as_dict(), **reference.get("params", {})}
+            if COUNT_KEY in merged["params"] and "realizations" not in reference:
+                del merged["realizations"]  # the reference's own count, not the spec's
             reference = _spec(merged, where + " [reference]")
         lo, hi = table.pop("band")
         band = Band(float(lo), float(hi), table.pop("band_unit", "q_min"), table.pop("whole_periods", False))

@@ -24,7 +24,7 @@ from ..devices import resolve_device
 from ..ensemble.batching import default_batch
 from ..forces.force import contact_force
 from ..ensemble.lines import rough_lines
-from ..ensemble.pipeline import progress_bar
+from ..ensemble.workers import progress_bar
 from ..ensemble.result import EnsembleResult
 from ..ensemble.spec import EnsembleSpec, run_specs
 from ..ensemble.psd import array_rows, psd_rows, to_host, wavenumbers

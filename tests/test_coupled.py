@@ -1,0 +1,72 @@
+"""The coupled kernel (eq 13) across its launch layouts and contact-point models: any count of
+realizations a block, odd counts of realizations included, gives the direct sum's coupled run;
+the tree's traversal path too; the modal contact point steps as a plain numpy loop of eq 13 with
+the state space's zero-order-hold step."""
+
+import numpy as np
+import pytest
+
+from mdroll import Params, rough_lines
+from mdroll.ensemble.coupled import contact_compliance, coupled_series
+from mdroll.forces.prepare import prepare_lines
+from mdroll.track import Track
+from reference import direct_force, to_numpy
+
+#: A rough case where the wheel leaves the rail in places (50 um at 30 m/s), 5 realizations.
+ROUGH = Params(L=0.05, h0=50e-6, q_min=2 * np.pi / 0.05, v0=30.0)
+
+
+def _series(lines, algorithm, device, **options):
+    prepared = prepare_lines(lines, ROUGH, algorithm, "open", ROUGH.d0, device, band_limit=options.pop("band_limit",
+                                                                                                        2048))
+    return to_numpy(coupled_series(prepared, ROUGH, algorithm, device, **options)[0])
+
+
+def test_every_layout_is_the_direct_sums_coupled_run(device):
+    # 5 realizations: 3 warps a block leave 1 of 6 warps idle, 4 leave 3 of 8 (CUDA; one a block on the CPU)
+    lines = rough_lines(ROUGH, seed=8, realizations=5, device=device)
+    direct = _series(lines, "direct", device, warps=1)
+    assert np.all(np.isfinite(direct)) and (direct == 0).sum() > 20  # steps without contact
+    for algorithm in ("sweep", "tree"):
+        for warps in (1, 3, 4, 8):
+            series = _series(lines, algorithm, device, warps=warps)
+            assert np.max(np.abs(series - direct)) <= 1e-12 * ROUGH.F_N, (algorithm, warps)
+    # the tree's traversal of the bands, which narrow bands never take
+    assert np.max(np.abs(_series(lines, "tree", device, band_limit=0) - direct)) <= 1e-12 * ROUGH.F_N
+
+
+def test_modal_contact_point_is_the_stepped_state_space(device):
+    # eq 13 with d = d_w - y: y the output 2 Re sum q of q <- phi q + gamma (F - F_N), numpy in complex.
+    # The fitted modes are large and cancel (|q| up to ~80 for |y| <= ~6e-8 m here), so any order of
+    # their sum moves y by ~1e-13 m, F by ~3e-4 N (~7e-9 F_N, as much for the kernel with the
+    # modes summed mode by mode): the tolerance is 2.5e-8 F_N
+    p = Params(L=0.024, dx=20e-6, h0=2e-6, H=0.5)
+    lines = rough_lines(p, seed=6, realizations=2, device=device)
+    form, rigid_mass = contact_compliance(Track.preset("ballasted-soft-pad"), None)
+    prepared = prepare_lines(lines, p, "sweep", "open", p.d0, device)
+    force, accel = (to_numpy(a) for a in coupled_series(prepared, p, "sweep", device, compliance=(form, rigid_mass)))
+    phi, gamma = form.discretize(p.dt)
+    host = to_numpy(lines)
+    for r in range(2):
+        q = np.zeros(form.order, dtype=complex)
+        y, depth, rate = 0.0, p.d0, 0.0
+        for s in range(prepared.steps):
+            F = direct_force(host[r], p, [(prepared.first + s) * p.dx], depth - y)[0]
+            assert abs(force[r, s] - F) <= 2.5e-8 * p.F_N, (r, s)
+            q = phi * q + gamma * (F - p.F_N)
+            y = 2 * np.sum(q.real)
+            a = (p.F_N - F) / p.m
+            assert accel[r, s] == pytest.approx(a, abs=2.5e-8 * p.F_N / p.m)
+            rate += p.dt * a
+            depth += p.dt * rate
+    assert np.ptp(force) > 0.01 * p.F_N
+
+
+def test_layout_counts_are_bounded():
+    from mdroll.ensemble.coupled import coupled_layout
+    from mdroll.errors import ParameterError
+
+    assert coupled_layout(5, "cuda:0", 4) == (2, 128)
+    assert coupled_layout(5, "cpu", 4) == (5, 128)
+    with pytest.raises(ParameterError, match=r"^warps = 33: allowed are 1 to 32 realizations a block$"):
+        coupled_layout(5, "cpu", 33)
