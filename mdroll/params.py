@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 
 import numpy as np
@@ -388,3 +389,30 @@ class Params:
             "lambda_A": (self.lambda_A, "m^(2-2H)", "PSD prefactor (eq 50, discrete)"),
         }
 
+
+# ----------------------------------------------------------------------------- settings
+def settings_pairs(settings, head: str) -> list[tuple]:
+    """``(KEY, VALUE)`` pairs of settings given as a mapping, ``"KEY=VALUE"`` strings or pairs
+    (:meth:`mdroll.track.Track.from_settings`); ``head`` (``track`` or ``wheel``) names them in errors."""
+    if isinstance(settings, Mapping):
+        return list(settings.items())
+    pairs = []
+    for item in settings:
+        if isinstance(item, str):
+            key, sep, value = item.partition("=")
+            if not sep:
+                raise ParameterError(f"{head} setting {item!r} is not allowed: write {head}.KEY=VALUE or "
+                                     f"{head}=PRESET")
+            item = (key.strip(), value.strip())
+        pairs.append(tuple(item))
+    return pairs
+
+
+def setting_number(key: str, value) -> float:
+    """A setting's numeric value: a number, or a string of one (not a bool)."""
+    try:
+        if isinstance(value, bool):
+            raise ValueError
+        return float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{key} = {value!r} is not allowed: it must be a number") from None

@@ -65,3 +65,33 @@ def test_bad_track_settings_end_in_one_line(cli, one_line_error, tmp_path):
                          (["--set", "track=rigid"], "rigid"), (["--points", "0"], "--points 0")]:
         one_line_error(cli("track", "receptance", *args, "--out", out), needle)
     assert not (tmp_path / "bad" / "receptance.csv").exists()
+
+
+# ----------------------------------------------------------------------------- TOML tables
+def test_config_tables_equal_the_same_settings_on_the_command_line(tmp_path):
+    from argparse import Namespace
+
+    from mdroll.cli.common import build_structures
+
+    config = tmp_path / "c.toml"
+    config.write_text('L = 0.05\n[track]\npreset = "ballasted-stiff-pad"\npad_loss = 0.3\nsleeper_spacing = 0.65\n'
+                      '[wheel]\npreset = "standard-920"\nmass = 550\n')
+    from_file = build_structures(Namespace(config=str(config), set=["track.pad_loss=0.35"]))
+    on_line = build_structures(Namespace(config=None, set=[
+        "track=ballasted-stiff-pad", "track.pad_loss=0.3", "track.sleeper_spacing=0.65", "wheel=standard-920",
+        "wheel.mass=550", "track.pad_loss=0.35"]))
+    assert from_file == on_line
+    track, wheel = from_file
+    assert (track.pad_stiffness, track.pad_loss, track.sleeper_spacing) == (1e9, 0.35, 0.65)
+    assert (wheel.kind, wheel.mass, len(wheel.modes)) == ("modal", 550.0, 5)
+
+
+def test_bad_config_tables_end_in_one_line(cli, one_line_error, tmp_path):
+    config = tmp_path / "c.toml"
+    for text, needle in [('[track]\npad_lossy = 0.3\n', "[track] track.pad_lossy"),
+                         ('[track]\npreset = "nope"\n', "[track] track = 'nope'"),
+                         ('[track]\npad_loss = true\n', "[track] track.pad_loss = True"),
+                         ('[wheel]\nmass = -1\n', "[wheel] wheel.mass"), ('track = 3\n', "'track' must be a [track]"),
+                         ('[rail]\nx = 1\n', "unknown table(s) ['rail']")]:
+        config.write_text(text)
+        one_line_error(cli("run", "--mode", "coupled", "--config", str(config), "--out", str(tmp_path / "o")), needle)

@@ -16,7 +16,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from ..errors import MdrollError, UsageError
+from ..errors import MdrollError, ParameterError, UsageError
 from ..files import read_toml
 from ..track import Track
 from ..wheel import Wheel
@@ -125,11 +125,16 @@ def _parse_value(key: str, text: str):
         raise UsageError(f"--set {key}={text}: not {kind}") from None
 
 
+#: The config file's tables of the track and the wheel (:func:`config_structures`).
+STRUCTURE_TABLES = ("track", "wheel")
+
+
 def load_config(path: str) -> dict:
-    """Parameters from a TOML file: top-level keys, or a ``[params]`` table alone; anything else
-    (unknown keys, other tables, top-level keys beside ``[params]``, a ``params`` that is not a
-    table) is refused, naming the key."""
-    data = read_toml(path, "config file", UsageError)
+    """Parameters from a TOML file: top-level keys, or a ``[params]`` table alone, beside which
+    only the ``[track]`` and ``[wheel]`` tables may stand (:func:`config_structures`); anything
+    else (unknown keys, other tables, top-level keys beside ``[params]``, a ``params`` that is not
+    a table) is refused, naming the key."""
+    data = {k: v for k, v in read_toml(path, "config file", UsageError).items() if k not in STRUCTURE_TABLES}
     if "params" in data:
         if not isinstance(data["params"], dict):
             raise UsageError(f"config file {path}: 'params' must be a [params] table of parameters, "
@@ -140,11 +145,26 @@ def load_config(path: str) -> dict:
         data = data["params"]
     tables = sorted(key for key, value in data.items() if isinstance(value, dict))
     if tables:
-        raise UsageError(f"config file {path}: unknown table(s) {tables}; only [params] is read")
+        raise UsageError(f"config file {path}: unknown table(s) {tables}; only [params], [track] and [wheel] are read")
     unknown = sorted(set(data) - set(PARAM_NAMES))
     if unknown:
         raise UsageError(f"config file {path}: unknown parameter(s) {unknown}; valid ones are: {', '.join(PARAM_NAMES)}")
     return data
+
+
+def config_structures(path: str) -> dict[str, list]:
+    """The ``[track]`` and ``[wheel]`` tables of a TOML config file as settings, ``{"track":
+    [("track", PRESET), ("track.KEY", value), ...], "wheel": [...]}``: ``preset = "NAME"`` is
+    ``--set track=NAME``, every other key ``--set track.KEY=VALUE``; a ``track`` or ``wheel``
+    that is not a table is refused."""
+    data = read_toml(path, "config file", UsageError)
+    settings: dict[str, list] = {name: [] for name in STRUCTURE_TABLES}
+    for name in STRUCTURE_TABLES:
+        table = data.get(name, {})
+        if not isinstance(table, dict):
+            raise UsageError(f"config file {path}: '{name}' must be a [{name}] table of keys, got {table!r}")
+        settings[name] = [(name if key == "preset" else f"{name}.{key}", value) for key, value in table.items()]
+    return settings
 
 
 def build_params(args, base: dict | None = None) -> tuple[Params, int | None]:
@@ -177,23 +197,27 @@ def _structure(key: str) -> str | None:
 
 
 def build_structures(args):
-    """The run's (track, wheel) from ``--set track=PRESET``, ``track.KEY=VALUE``, ``wheel=PRESET``
-    and ``wheel.KEY=VALUE`` (None where none is given): :meth:`mdroll.track.Track.from_settings`;
-    the wheel's preset first, then its numeric keys."""
-    items = [item.split("=", 1) for item in getattr(args, "set", None) or [] if "=" in item]
-    track_items = [f"{k.strip()}={v.strip()}" for k, v in items if _structure(k.strip()) == "track"]
-    wheel_items = [(k.strip(), v.strip()) for k, v in items if _structure(k.strip()) == "wheel"]
-    track = Track.from_settings(track_items) if track_items else None
-    wheel = None
-    if wheel_items:
-        wheel = Wheel()
-        for key, text in wheel_items:
-            if key == "wheel":
-                wheel = Wheel.preset(text)
-        for key, text in wheel_items:
-            if key != "wheel":
-                name = key.removeprefix("wheel.")
-                wheel = wheel.with_values(**{name: text if name == "kind" else _parse_value(key, text)})
+    """The run's (track, wheel) from the config file's ``[track]`` and ``[wheel]`` tables
+    (:func:`config_structures`), then ``--set track=PRESET``, ``track.KEY=VALUE``,
+    ``wheel=PRESET`` and ``wheel.KEY=VALUE`` on top (None where neither gives any):
+    :meth:`mdroll.track.Track.from_settings` and :meth:`mdroll.wheel.Wheel.from_settings`, each
+    preset first, then the keys in order. A bad key or value of the file names the file."""
+    settings = {name: [] for name in STRUCTURE_TABLES}
+    path = getattr(args, "config", None)
+    if path:
+        for name, items in config_structures(path).items():
+            try:
+                (Track if name == "track" else Wheel).from_settings(items)
+            except ParameterError as exc:
+                raise UsageError(f"config file {path}: [{name}] {exc}") from None
+            settings[name] += items
+    for item in getattr(args, "set", None) or []:
+        key, sep, text = item.partition("=")
+        name = _structure(key.strip())
+        if sep and name:
+            settings[name].append((key.strip(), text.strip()))
+    track = Track.from_settings(settings["track"]) if settings["track"] else None
+    wheel = Wheel.from_settings(settings["wheel"]) if settings["wheel"] else None
     return track, wheel
 
 

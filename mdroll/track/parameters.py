@@ -20,6 +20,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, fields
 
 from mdroll.errors import ParameterError
+from mdroll.params import setting_number, settings_pairs
 
 #: Support models: ``rigid`` (an immovable rail, zero receptance), ``continuous`` (the supports
 #: smeared along the rail, per length k / sleeper_spacing), ``discrete`` (one support per sleeper).
@@ -115,7 +116,7 @@ class Track:
     @classmethod
     def preset(cls, name: str) -> "Track":
         """The preset ``name`` of :data:`PRESETS` (sources in :data:`SOURCES`)."""
-        if name not in PRESETS:
+        if not isinstance(name, str) or name not in PRESETS:
             raise ParameterError(f"track = {name!r} is not allowed: choose one of {list(PRESETS)}")
         return cls(**PRESETS[name])
 
@@ -128,11 +129,12 @@ class Track:
         return dataclasses.replace(self, **values)
 
     @classmethod
-    def from_settings(cls, settings: Mapping[str, str] | Iterable[str]) -> "Track":
-        """A track from ``track=PRESET`` and ``track.KEY=VALUE`` settings (strings, as on a
-        command line), given as a mapping ``{"track.pad_loss": "0.3"}`` or as ``"KEY=VALUE"``
-        strings. The preset applies first (default: the class defaults), then the keys in order."""
-        pairs = list(settings.items()) if isinstance(settings, Mapping) else [_split(item) for item in settings]
+    def from_settings(cls, settings: Mapping[str, str] | Iterable) -> "Track":
+        """A track from ``track=PRESET`` and ``track.KEY=VALUE`` settings, given as a mapping
+        ``{"track.pad_loss": "0.3"}``, as ``"KEY=VALUE"`` strings (a command line's) or as
+        ``(KEY, VALUE)`` pairs (a TOML table's, values typed). The preset applies first (default:
+        the class defaults), then the keys in order."""
+        pairs = settings_pairs(settings, "track")
         track = cls()
         for key, value in pairs:
             if key == "track":
@@ -140,7 +142,7 @@ class Track:
         for key, value in pairs:
             if key != "track":
                 name = key.removeprefix("track.")
-                track = track.with_values(**{name: value if name == "support" else _number(key, value)})
+                track = track.with_values(**{name: value if name == "support" else setting_number(key, value)})
         return track
 
     def as_dict(self) -> dict:
@@ -151,17 +153,3 @@ class Track:
 def _check(name: str, value, allowed: str, test) -> None:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not test(float(value)):
         raise ParameterError(f"track.{name} = {value!r} is not allowed: it must be a real number, {allowed}")
-
-
-def _split(item: str) -> tuple[str, str]:
-    key, sep, value = item.partition("=")
-    if not sep:
-        raise ParameterError(f"track setting {item!r} is not allowed: write track.KEY=VALUE or track=PRESET")
-    return key.strip(), value.strip()
-
-
-def _number(key: str, value: str) -> float:
-    try:
-        return float(value)
-    except ValueError:
-        raise ParameterError(f"{key} = {value!r} is not allowed: it must be a number") from None

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mdroll.errors import ParameterError
+from mdroll.params import setting_number, settings_pairs
 from mdroll.physics import TWO_PI
 from mdroll.statespace import ModalForm
 
@@ -96,7 +97,7 @@ class Wheel:
     @classmethod
     def preset(cls, name: str) -> "Wheel":
         """The preset ``name`` of :data:`PRESETS` (sources in :data:`SOURCES`)."""
-        if name not in PRESETS:
+        if not isinstance(name, str) or name not in PRESETS:
             raise ParameterError(f"wheel = {name!r} is not allowed: choose one of {list(PRESETS)}")
         return cls(**PRESETS[name])
 
@@ -107,6 +108,26 @@ class Wheel:
         if unknown:
             raise ParameterError(f"wheel.{unknown[0]} is not allowed: the wheel keys are {names}")
         return dataclasses.replace(self, **values)
+
+    @classmethod
+    def from_settings(cls, settings) -> "Wheel":
+        """A wheel from ``wheel=PRESET`` and ``wheel.KEY=VALUE`` settings, as
+        :meth:`mdroll.track.Track.from_settings` takes them: the preset first (default: the
+        class defaults), then the keys in order; ``kind`` is a name, the others numbers
+        (``modes`` only through the class or a preset)."""
+        pairs = settings_pairs(settings, "wheel")
+        wheel = cls()
+        for key, value in pairs:
+            if key == "wheel":
+                wheel = cls.preset(value)
+        for key, value in pairs:
+            if key != "wheel":
+                name = key.removeprefix("wheel.")
+                if name == "modes":
+                    raise ParameterError(f"{key} is not allowed as a setting: choose a wheel preset or build "
+                                         "mdroll.wheel.Wheel(modes=...)")
+                wheel = wheel.with_values(**{name: value if name == "kind" else setting_number(key, value)})
+        return wheel
 
     def receptance(self, f):
         """Radial point receptance alpha_W (m/N, complex) at frequencies ``f`` (Hz, > 0): the
