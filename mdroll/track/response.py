@@ -8,7 +8,7 @@ import numpy as np
 from mdroll.errors import ParameterError
 
 from .beam import continuous_decay_rate, continuous_receptance
-from .periodic import discrete_decay_rate, discrete_receptance
+from .periodic import discrete_decay_rate, discrete_receptance, sleeper_receptance
 
 #: Where the wheel stands on a discretely supported rail: above a support or at mid-span.
 POSITIONS = ("sleeper", "midspan")
@@ -25,7 +25,8 @@ def receptance(track, f, position="sleeper"):
     """Vertical point receptance of the rail (m/N, complex) at frequencies ``f`` (Hz) for the
     wheel standing at ``position`` (:data:`POSITIONS`; the continuous and rigid tracks have no
     positions): zero for the rigid track, :func:`~mdroll.track.continuous_receptance` or
-    :func:`~mdroll.track.discrete_receptance` (x0 = 0 or d / 2)."""
+    :func:`~mdroll.track.periodic.sleeper_receptance` above a support (closed form) and
+    :func:`~mdroll.track.discrete_receptance` at x0 = d / 2."""
     if position not in POSITIONS:
         raise ParameterError(f"position = {position!r} is not allowed: choose one of {list(POSITIONS)}")
     f = np.asarray(f, dtype=np.float64)
@@ -33,8 +34,9 @@ def receptance(track, f, position="sleeper"):
         return np.zeros(f.shape, dtype=complex)
     if track.support == "continuous":
         return continuous_receptance(f, track)
-    x0 = 0.0 if position == "sleeper" else 0.5 * track.sleeper_spacing
-    return discrete_receptance(f, track, x0=x0)
+    if position == "sleeper":
+        return sleeper_receptance(f, track)
+    return discrete_receptance(f, track, x0=0.5 * track.sleeper_spacing)
 
 
 def decay_rate(track, f):
