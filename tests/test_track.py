@@ -14,7 +14,7 @@ from mdroll.track import (PRESETS, Track, band_levels, chain_for_params, continu
                           floquet_multipliers, iso3095_decay_limit, linear_chain, pinned_pinned_frequency,
                           receptance, third_octave_centres)
 from mdroll.track.beam import foundation_stiffness
-from mdroll.track.periodic import sleeper_receptance
+from mdroll.track.periodic import point_receptance
 
 BANDS = third_octave_centres(100, 5000)
 #: Euler-Bernoulli limit: no shear flexibility, no rotary inertia.
@@ -116,11 +116,13 @@ def test_zone_average_has_converged():
 
 
 @pytest.mark.parametrize("name", ["ballasted-soft-pad", "ballasted-stiff-pad", "slab"])
-def test_sleeper_closed_form_is_the_zone_average(name):
-    # the residues at the two inner Floquet multipliers against the trapezoid rule over the zone
+def test_closed_forms_are_the_zone_average(name):
+    # the residues of the contour integral against the trapezoid rule over the zone
     track = Track.preset(name)
     f = np.geomspace(5, 10000, 40)
-    np.testing.assert_allclose(sleeper_receptance(f, track), discrete_receptance(f, track, x0=0.0), rtol=1e-8)
+    for position, x0 in (("sleeper", 0.0), ("midspan", 0.5 * track.sleeper_spacing)):
+        np.testing.assert_allclose(point_receptance(f, track, position), discrete_receptance(f, track, x0=x0),
+                                   rtol=1e-8)
 
 
 @pytest.mark.parametrize("f", [300.0, 800.0, 2000.0])

@@ -58,12 +58,22 @@ def test_decay_csv_is_the_winkler_beam_and_its_verdict(cli, tmp_path):
     assert (tmp_path / "d" / "decay.png").stat().st_size > 1000
 
 
-def test_bad_track_settings_end_in_one_line(cli, one_line_error, tmp_path):
+def _one_line(capsys, args, needle):
+    """In process (the subprocess case is ``test_track_coupled.py``'s): exit code 2 and one line."""
+    from mdroll import cli
+
+    assert cli.main(args) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and needle in err[0], err
+
+
+def test_bad_track_settings_end_in_one_line(capsys, tmp_path):
     out = str(tmp_path / "bad")
     for args, needle in [(["--set", "track.bogus=1"], "track.bogus"), (["--set", "track=nope"], "track = 'nope'"),
                          (["--set", "track.pad_loss=-1"], "track.pad_loss"), (["--set", "L=1"], "--set L=1"),
-                         (["--set", "track=rigid"], "rigid"), (["--points", "0"], "--points 0")]:
-        one_line_error(cli("track", "receptance", *args, "--out", out), needle)
+                         (["--set", "track=rigid"], "rigid"), (["--points", "0"], "--points 0"),
+                         (["--f-min", "20", "--f-max", "10"], "--f-min 20")]:
+        _one_line(capsys, ["track", "receptance", *args, "--out", out], needle)
     assert not (tmp_path / "bad" / "receptance.csv").exists()
 
 
@@ -86,7 +96,7 @@ def test_config_tables_equal_the_same_settings_on_the_command_line(tmp_path):
     assert (wheel.kind, wheel.mass, len(wheel.modes)) == ("modal", 550.0, 5)
 
 
-def test_bad_config_tables_end_in_one_line(cli, one_line_error, tmp_path):
+def test_bad_config_tables_end_in_one_line(capsys, tmp_path):
     config = tmp_path / "c.toml"
     for text, needle in [('[track]\npad_lossy = 0.3\n', "[track] track.pad_lossy"),
                          ('[track]\npreset = "nope"\n', "[track] track = 'nope'"),
@@ -94,4 +104,4 @@ def test_bad_config_tables_end_in_one_line(cli, one_line_error, tmp_path):
                          ('[wheel]\nmass = -1\n', "[wheel] wheel.mass"), ('track = 3\n', "'track' must be a [track]"),
                          ('[rail]\nx = 1\n', "unknown table(s) ['rail']")]:
         config.write_text(text)
-        one_line_error(cli("run", "--mode", "coupled", "--config", str(config), "--out", str(tmp_path / "o")), needle)
+        _one_line(capsys, ["run", "--mode", "coupled", "--config", str(config), "--out", str(tmp_path / "o")], needle)

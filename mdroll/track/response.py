@@ -8,7 +8,7 @@ import numpy as np
 from mdroll.errors import ParameterError
 
 from .beam import continuous_decay_rate, continuous_receptance
-from .periodic import discrete_decay_rate, discrete_receptance, sleeper_receptance
+from .periodic import discrete_decay_rate, point_receptance
 
 #: Where the wheel stands on a discretely supported rail: above a support or at mid-span.
 POSITIONS = ("sleeper", "midspan")
@@ -25,8 +25,7 @@ def receptance(track, f, position="sleeper"):
     """Vertical point receptance of the rail (m/N, complex) at frequencies ``f`` (Hz) for the
     wheel standing at ``position`` (:data:`POSITIONS`; the continuous and rigid tracks have no
     positions): zero for the rigid track, :func:`~mdroll.track.continuous_receptance` or
-    :func:`~mdroll.track.periodic.sleeper_receptance` above a support (closed form) and
-    :func:`~mdroll.track.discrete_receptance` at x0 = d / 2."""
+    :func:`~mdroll.track.periodic.point_receptance` (closed form, x0 = 0 or d / 2)."""
     if position not in POSITIONS:
         raise ParameterError(f"position = {position!r} is not allowed: choose one of {list(POSITIONS)}")
     f = np.asarray(f, dtype=np.float64)
@@ -34,9 +33,7 @@ def receptance(track, f, position="sleeper"):
         return np.zeros(f.shape, dtype=complex)
     if track.support == "continuous":
         return continuous_receptance(f, track)
-    if position == "sleeper":
-        return sleeper_receptance(f, track)
-    return discrete_receptance(f, track, x0=0.5 * track.sleeper_spacing)
+    return point_receptance(f, track, position)
 
 
 def decay_rate(track, f):
