@@ -1,10 +1,8 @@
 """Checks of the public API's arguments, made once where each enters (:func:`mdroll.contact_force`,
 :func:`mdroll.run_ensemble`): a bad value ends in one :class:`~mdroll.errors.ParameterError`
-naming the argument, the value and what is allowed."""
+naming the argument, the value and what is allowed. A number's range: :mod:`mdroll.checks`."""
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 
@@ -33,28 +31,16 @@ def check_choice(name: str, value, allowed) -> str:
     return value
 
 
-def check_integer(name: str, value, minimum: int, unit: str = "") -> int:
-    """``value`` as an int if it is an integer (not a bool) >= ``minimum``."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < minimum:
-        allowed = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
+def check_integer(name: str, value, minimum: int, unit: str = "", maximum: int | None = None) -> int:
+    """``value`` as an int if it is an integer (not a bool) >= ``minimum`` (and <= ``maximum``)."""
+    if (isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < minimum
+            or (maximum is not None and value > maximum)):
+        if maximum is not None:
+            allowed = f"an integer from {minimum} to {maximum}"
+        else:
+            allowed = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
         raise ParameterError(f"{name} = {value!r} is not allowed: it must be {allowed}{f' ({unit})' if unit else ''}")
     return int(value)
-
-
-def check_positive(name: str, value, unit: str) -> float:
-    """``value`` as a float if it is a positive, finite real number."""
-    if (isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating))
-            or not (math.isfinite(value) and value > 0)):
-        raise ParameterError(f"{name} = {value!r} is not allowed: it must be positive and finite ({unit})")
-    return float(value)
-
-
-def check_real(name: str, value, unit: str) -> float:
-    """``value`` as a float if it is a finite real number."""
-    if (isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating))
-            or not math.isfinite(value)):
-        raise ParameterError(f"{name} = {value!r} is not allowed: it must be a finite real number ({unit})")
-    return float(value)
 
 
 def check_tree_options(leaf_size, band_limit) -> tuple[int, int]:

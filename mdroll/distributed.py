@@ -327,6 +327,9 @@ def connect(workers: int | None = None, scheduler: str | None = None, device: st
                 client = Client(scheduler, timeout="10s")
             except OSError as exc:
                 raise ParameterError(f"scheduler = {scheduler!r}: cannot connect ({exc})") from None
+            except (ValueError, TypeError):  # Dask's parse of the address
+                raise ParameterError(f"scheduler = {scheduler!r} is not an address: give one such as "
+                                     "tcp://host:8786") from None
             with client:
                 yield client
         finally:

@@ -47,6 +47,18 @@ def atomic_write(path, mode: str = "wb"):
         raise
 
 
+def save_figure(fig, target, **options) -> None:
+    """Save the Matplotlib figure ``fig`` to ``target``: a binary file (as PNG), or a path, written
+    through :func:`atomic_write` in the format its suffix names (PNG without one); ``options``
+    go to ``fig.savefig``."""
+    if hasattr(target, "write"):
+        fig.savefig(target, **{"format": "png", **options})
+        return
+    path = Path(target)
+    with atomic_write(path) as file:
+        fig.savefig(file, **{"format": path.suffix.lstrip(".").lower() or "png", **options})
+
+
 def remove_stale_temporaries(path) -> None:
     """Remove the temporary files that killed :func:`atomic_write` calls of ``path`` left beside
     it; only where no other process can be writing ``path`` (a locked run directory)."""

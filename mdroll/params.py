@@ -7,12 +7,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 
 import numpy as np
 
 from . import physics
+from .checks import check_number, check_positive
 from .errors import ParameterError
 
 
@@ -22,13 +22,6 @@ MAX_POINTS = 2**31 - 1
 MIN_H0 = 1e-100
 #: Modes per piece of the band summed for lambda_A (32 MiB of float64).
 BAND_PIECE = 2**22
-
-
-def _check_finite_positive(name: str, value) -> None:
-    if not (isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)):
-        raise ParameterError(f"{name} must be a real number, got {value!r} ({type(value).__name__})")
-    if not math.isfinite(value) or value <= 0:
-        raise ParameterError(f"{name} = {value!r} is not allowed: it must be positive and finite")
 
 
 #: Roughness models of the ``roughness`` field (:mod:`mdroll.roughness`), the default first.
@@ -116,15 +109,9 @@ class Params:
 
     def __post_init__(self) -> None:
         for name in ("E", "R", "m", "F_N", "v0", "L", "dx", "h0", "q_min"):
-            _check_finite_positive(name, getattr(self, name))
-        for name in ("nu", "H"):
-            value = getattr(self, name)
-            if not isinstance(value, (int, float, np.integer, np.floating)) or isinstance(value, bool):
-                raise ParameterError(f"{name} must be a real number, got {value!r} ({type(value).__name__})")
-        if not (math.isfinite(self.nu) and -1.0 < self.nu < 0.5):
-            raise ParameterError(f"nu = {self.nu!r} is not allowed: Poisson's ratio must lie in (-1, 0.5)")
-        if not (math.isfinite(self.H) and 0.0 < self.H < 1.0):
-            raise ParameterError(f"H = {self.H!r} is not allowed: the Hurst exponent must lie in (0, 1)")
+            check_positive(name, getattr(self, name))
+        check_number("nu", self.nu, "in (-1, 0.5), the range of Poisson's ratio", lambda v: -1.0 < v < 0.5)
+        check_number("H", self.H, "in (0, 1), the range of the Hurst exponent", lambda v: 0.0 < v < 1.0)
         if not self.L / self.dx < MAX_POINTS:
             raise ParameterError(
                 f"L = {self.L!r} m is not allowed with dx = {self.dx!r} m: the line would hold {self.L / self.dx:.3g} "
@@ -148,7 +135,7 @@ class Params:
         nyquist_cutoff = self.q_max is None
         if nyquist_cutoff:
             object.__setattr__(self, "q_max", math.pi / self.dx)
-        _check_finite_positive("q_max", self.q_max)
+        check_positive("q_max", self.q_max)
         nyquist = math.pi / self.dx
         if self.q_max > nyquist * (1.0 + 1e-12):
             raise ParameterError(
@@ -198,7 +185,7 @@ class Params:
             if self.roughness != "rolloff":
                 raise ParameterError(f"q_r = {self.q_r!r} is not allowed with roughness = {self.roughness!r}: "
                                      "the roll-off wavenumber belongs to roughness = 'rolloff'")
-            _check_finite_positive("q_r", self.q_r)
+            check_positive("q_r", self.q_r)
             if not self.dq <= self.q_r < self.q_max:
                 raise ParameterError(f"q_r = {self.q_r!r} rad/m is not allowed: it must lie in [2 pi / L, q_max) = "
                                      f"[{self.dq:.6g}, {self.q_max:.6g}) rad/m")
@@ -388,31 +375,3 @@ class Params:
             "springs_in_contact": (self.springs_in_contact, "-", "2a/dx"),
             "lambda_A": (self.lambda_A, "m^(2-2H)", "PSD prefactor (eq 50, discrete)"),
         }
-
-
-# ----------------------------------------------------------------------------- settings
-def settings_pairs(settings, head: str) -> list[tuple]:
-    """``(KEY, VALUE)`` pairs of settings given as a mapping, ``"KEY=VALUE"`` strings or pairs
-    (:meth:`mdroll.track.Track.from_settings`); ``head`` (``track`` or ``wheel``) names them in errors."""
-    if isinstance(settings, Mapping):
-        return list(settings.items())
-    pairs = []
-    for item in settings:
-        if isinstance(item, str):
-            key, sep, value = item.partition("=")
-            if not sep:
-                raise ParameterError(f"{head} setting {item!r} is not allowed: write {head}.KEY=VALUE or "
-                                     f"{head}=PRESET")
-            item = (key.strip(), value.strip())
-        pairs.append(tuple(item))
-    return pairs
-
-
-def setting_number(key: str, value) -> float:
-    """A setting's numeric value: a number, or a string of one (not a bool)."""
-    try:
-        if isinstance(value, bool):
-            raise ValueError
-        return float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{key} = {value!r} is not allowed: it must be a number") from None

@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from . import physics
+from .errors import ParameterError
+from .files import save_figure
 
 
 def plot_psd(result, quantity: str = "accel", path=None, ax=None):
@@ -19,7 +21,7 @@ def plot_psd(result, quantity: str = "accel", path=None, ax=None):
     import matplotlib.pyplot as plt
 
     if quantity not in ("accel", "force"):
-        raise ValueError(f"quantity = {quantity!r} is not allowed: choose 'accel' or 'force'")
+        raise ParameterError(f"quantity = {quantity!r} is not allowed: choose 'accel' or 'force'")
     p = result.params
     omega = result.omega[1:]
     q = result.q[1:]
@@ -68,7 +70,7 @@ def plot_psd(result, quantity: str = "accel", path=None, ax=None):
     ax.legend(loc="lower left", fontsize=7)
     if own:
         if path is not None:
-            fig.savefig(path)
+            save_figure(fig, path)
             plt.close(fig)
         return fig
     return ax

@@ -186,13 +186,24 @@ COMMANDS = {
     "python benchmarks/cpu_full_run.py --repeats 3 --out cpu_full_run.json":
         ("options", "python benchmarks/cpu_full_run.py"),
     "OUT=DIR bash benchmarks/gpu_session.sh tests": ("ci", "the GPU machine's session script"),
-    # track.md
+    # track.md: the track alone
     "mdroll track receptance --set track=ballasted-soft-pad --position midspan --out rec":
         ("run", "mdroll track receptance --set track=ballasted-soft-pad --position midspan --points 20 --out rec",
          "tmp"),
     "mdroll track decay --set track=ballasted-stiff-pad --set track.pad_loss=0.3 --out dec":
         ("run", "mdroll track decay --set track=ballasted-stiff-pad --set track.pad_loss=0.3 --out dec", "tmp"),
     "python benchmarks/track_chain.py --out track_chain.json": ("options", "python benchmarks/track_chain.py"),
+    # track.md: the track study (quick: minutes of CPU; full: GPU) and the inverse fit on a track
+    "mdroll roughness check --only track --device cpu --out track-quick": ("options", "mdroll roughness check"),
+    "mdroll roughness check --full --only track --device cuda --out track-full": ("options", "mdroll roughness check"),
+    "mdroll invert run-on-track --known m=500 --known R=0.5 --known E=2.1e11 --known nu=0.3 --band 300:20000Hz "
+    "--correction none": ("options", "mdroll invert"),
+    "mdroll invert accel.csv --frequency-unit Hz --sided one --density Hz --passes 30 --known v0=10 --known m=500 "
+    "--known R=0.5 --set track=ballasted-soft-pad": ("options", "mdroll invert"),
+    # mdr-vs-3d.md: the study's quick run (minutes on a CPU) and its full run (a GPU)
+    "mdroll study mdr-vs-3d --quick --device cpu --out docs/mdr-vs-3d/quick --force": ("options", "mdroll study"),
+    "python3 -m mdroll study mdr-vs-3d --full --device cuda --out $OUT/mdr3d --no-progress":
+        ("options", "mdroll study"),
 }
 
 

@@ -20,8 +20,10 @@ from mdroll import EnsembleResult, EnsembleSpec, Params, contact_force, rough_li
 from mdroll.cli import main as cli_main
 from mdroll.ensemble import batching
 from mdroll.ensemble.validity import parameter_concerns
-from mdroll.inverse import fit, read_spectrum, table_spectrum
+from mdroll.inverse import fit, from_result, read_spectrum, table_spectrum
 from mdroll.inverse import observed
+from mdroll.inverse.roundtrip import run_study
+from mdroll.plotting import plot_psd
 from mdroll.roughness.line_grid import line_rms
 
 TINY = ["--set", "L=0.025", "--set", "dx=2.5e-5", "--device", "cpu", "--no-progress"]
@@ -178,6 +180,14 @@ INVERT_CASES = [
     ("no power", lambda tmp, r: _npz_table(tmp, scale=0.0), ["--known", "v0=20"], "0 bins with power"),
     ("denormal power", lambda tmp, r: _npz_table(tmp, scale=5e-324), ["--known", "v0=20"], "bins with power"),
     ("bootstrap unbounded", lambda tmp, r: tmp / "none.npz", ["--bootstrap", "1000000000"], "2 to 10000"),
+    ("passes unbounded", lambda tmp, r: _npz_table(tmp), ["--passes", "1000000000"], "--passes: passes = 1000000000"),
+    ("correction passes unbounded", lambda tmp, r: tmp / "none.npz", ["--correction-passes", "1000000000"],
+     "from 1 to 100000"),
+    ("correction passes on a table", lambda tmp, r: _npz_table(tmp), ["--correction-passes", "5"],
+     "without the simulated correction"),
+    ("bootstrap of a table", lambda tmp, r: _npz_table(tmp), ["--bootstrap", "5"], "is a table"),
+    ("round-trip option", lambda tmp, r: _npz_table(tmp), ["--workers", "4"], "for --round-trip only"),
+    ("scheduler without bootstrap", lambda tmp, r: _npz_table(tmp), ["--scheduler", "tcp://x:1"], "give --bootstrap"),
 ]
 
 
@@ -197,6 +207,22 @@ def test_invert_refuses_what_its_model_cannot_describe(part, tmp_path, capsys, m
     out = tmp_path / "out"
     _refused(capsys, needle, "invert", spectrum, "--known", "m=500", "--known", "R=0.5", *options, "--out", out)
     assert not out.exists()
+
+
+ROUND_TRIP_CASES = [
+    (["--workers", "1000"], "--workers: workers = 1000"),
+    (["--repeats", "1000000000"], "from 1 to 1000 (seeds per truth)"),
+    (["--correction-passes", "1000000000"], "--correction-passes: correction_passes = 1000000000"),
+    (["--passes-list", "1,1000000000"], "--passes-list: passes = 1000000000"),
+    (["--known", "v0=20"], "not for --round-trip"),
+    (["--lengths", "1e300"], "--lengths: L = 1e+300 m is not allowed"),
+]
+
+
+@pytest.mark.parametrize("options,needle", ROUND_TRIP_CASES, ids=[c[1] for c in ROUND_TRIP_CASES])
+def test_round_trip_counts_are_bounded_before_any_work(tmp_path, capsys, options, needle):
+    line = _refused(capsys, needle, "invert", "--round-trip", *options, "--device", "cpu", "--out", tmp_path / "o")
+    assert not (tmp_path / "o").exists()
 
 
 def test_an_npz_table_is_fitted_as_the_quantity_it_declares(tmp_path):
@@ -247,6 +273,9 @@ PROFILE_CASES = [
     ("not UTF-8", lambda tmp: _write(tmp / "p.csv", b"\xff\xfe\x00"), [], "not UTF-8"),
     ("pickled NPY", lambda tmp: _npy(tmp / "p.npy", np.array([{}], dtype=object)), ["--dx", "1e-4"], "pickled"),
     ("negative segment", lambda tmp: _profile(tmp, 1e-6 * np.sin(3e3 * X), X), ["--segment", "-1e-3"], "segment"),
+    ("flat", lambda tmp: _profile(tmp, 1e-6 + 0 * X, X), [], "no roughness to estimate"),
+    ("rows of text", lambda tmp: _write(tmp / "p.csv", b"x,h\n0,a\n1e-4,b\n"), [], "line 2: '0,a' is not a row"),
+    ("a directory", lambda tmp: tmp, [], "a directory, not a file"),
 ]
 
 
@@ -272,7 +301,20 @@ OS_CASES = [
     ("run", lambda part, tmp: ["run", *TINY, "--realizations", "1", "--out", tmp / "o"]),
     ("profile", lambda part, tmp: ["roughness", "profile", _profile(tmp, 1e-6 * np.sin(3e3 * X), X), "--out",
                                    tmp / "o"]),
+    ("filter", lambda part, tmp: ["roughness", "filter", "--out", tmp / "o"]),
 ]
+
+
+def test_a_figure_saved_to_a_path_is_whole_or_absent(part, tmp_path, monkeypatch):
+    """plot_psd to a path writes through the atomic writer: a full disk leaves neither a part of
+    the PNG nor its temporary file; a sound write is a PNG (its signature)."""
+    result = EnsembleResult.load(part / "spectra.npz")
+    plot_psd(result, "force", tmp_path / "f.png")
+    assert (tmp_path / "f.png").read_bytes()[:4] == b"\x89PNG"
+    monkeypatch.setattr(os, "fsync", _no_space)
+    with pytest.raises(OSError, match="No space left"):
+        plot_psd(result, "accel", tmp_path / "a.png")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f.png"]
 
 
 @pytest.mark.parametrize("args", [c[1] for c in OS_CASES], ids=[c[0] for c in OS_CASES])
@@ -290,13 +332,14 @@ def test_a_path_too_long_or_a_directory_for_a_file_is_one_line(part, tmp_path, c
     _refused(capsys, "spectra.npz: Is a directory", "merge", part, "--out", out, "--force")
 
 
-def test_stale_temporary_files_of_killed_writes_are_removed(part, tmp_path, capsys):
+@pytest.mark.parametrize("command", [["run", *TINY, "--realizations", "1"], ["merge", "{part}"]], ids=["run", "merge"])
+def test_stale_temporary_files_of_killed_writes_are_removed(part, tmp_path, capsys, command):
     out = tmp_path / "o"
     out.mkdir()
-    stale = [out / ".checkpoint.npz.abc123.tmp", out / ".spectra.npz.def456.tmp"]
+    stale = [out / ".summary.json.abc123.tmp", out / ".spectra.npz.def456.tmp"]
     for path in stale:
         path.write_bytes(b"partial")
-    assert _main(capsys, "run", *TINY, "--realizations", "1", "--out", out, "--force")[0] == 0
+    assert _main(capsys, *[a.format(part=part) for a in command], "--out", out, "--force")[0] == 0
     assert not any(path.exists() for path in stale)
 
 
@@ -318,6 +361,14 @@ API_MISUSES = [
     (lambda r, s: fit(s, bin=0), "bin = 0"),
     (lambda r, s: read_spectrum(None), "path must be a file name"),
     (lambda r, s: contact_force([[0.0] * 10], Params()), "shape"),
+    (lambda r, s: contact_force("abc", Params()), "lines must be an array of heights"),
+    (lambda r, s: fit(s, passes=10**9), "passes = 1000000000 is not allowed: it must be an integer from 1 to 100000"),
+    (lambda r, s: fit(s, correction_passes=10**9), "correction_passes = 1000000000"),
+    (lambda r, s: table_spectrum(np.arange(1.0, 9.0), np.ones(8), passes=10**6), "from 1 to 100000"),
+    (lambda r, s: from_result({}), "result must be an mdroll.EnsembleResult"),
+    (lambda r, s: run_study("quick", workers=10**4), "workers = 10000"),
+    (lambda r, s: run_study("quick", repeats=10**9), "repeats = 1000000000"),
+    (lambda r, s: run_ensemble(Params(L=0.025, dx=2.5e-5), realizations=range(2**64, 2**64 + 1)), "at most 2^63"),
 ]
 
 
@@ -327,7 +378,7 @@ def test_the_api_names_the_misused_argument(part, call, needle):
     spectrum = table_spectrum(np.arange(1.0, 100.0), np.ones(99))
     with pytest.raises(mdroll.ParameterError, match=None) as raised:
         call(result, spectrum)
-    assert needle in str(raised.value)
+    assert needle in str(raised.value) or needle.replace("2^63", str(2**63 - 1)) in str(raised.value)
 
 
 # ----------------------------------------------------------------------------- bounds and messages
@@ -351,6 +402,16 @@ MESSAGE_CASES = [
     (["run", "--seed", "-1", *TINY], "seed = -1"),
     (["run", "--batch", "-2", *TINY], "batch = -2"),
     (["invert", "--band", "-20:30", "{spectra}"], "--option=VALUE"),
+    (["run", "--first", str(2**64), *TINY], "0 .. 9223372036854775807"),
+    (["run", "--mode", "coupled", "--set", "wheel.mass=abc", *TINY], "wheel.mass = 'abc' is not allowed"),
+    (["run", "--mode", "coupled", "--set", "wheel.m=1", *TINY], "the wheel keys are"),
+    (["run", "--mode", "coupled", "--set", "track=nonsense", *TINY], "track = 'nonsense'"),
+    (["run", "--scheduler", "nonsense", *TINY], "is not an address"),
+    (["study", "coupling", "--test", "--seed", "-1"], "seed = -1"),
+    (["study", "coupling", "--test", "--device", "bogus"], "device 'bogus'"),
+    (["study", "list", "x"], "only `study report` takes a folder"),
+    (["roughness", "check", "--only", "round_trip", "--seed", "-1"], "seed = -1"),
+    (["validate", "--seed", "-1"], "seed = -1"),
 ]
 
 
@@ -428,6 +489,17 @@ PROVIDER_CASES = [
 def test_a_users_provider_never_ends_validate_as_a_success(tmp_path, capsys, monkeypatch, text, needle):
     name = _module(tmp_path, monkeypatch, f"provider_{abs(hash(text))}", text)
     _refused(capsys, needle, "validate", "--check", f"{name}:provider", "--device", "cpu", "--out", tmp_path / "o")
+    assert not (tmp_path / "o").exists()  # the folder is made only once there is a report to write
+
+
+def test_a_prediction_returning_text_is_named_not_converted(tmp_path, capsys, monkeypatch):
+    name = _module(tmp_path, monkeypatch, "text_prediction", "def text(x, params):\n    return 'abc'\n")
+    path = tmp_path / "checks.toml"
+    path.write_text("[[check]]\n" + CHECK_TOML.replace("math:sqrt", f"{name}:text") + "[check.spec]\nrealizations = 2\n"
+                    "[check.spec.params]\nL = 0.025\ndx = 2.5e-5\n")
+    _refused(capsys, "returned 'abc' (str), not a number", "validate", "--checks", path, "--device", "cpu",
+             "--no-cache", "--no-progress", "--out", tmp_path / "o")
+    assert not (tmp_path / "o").exists()
 
 
 def test_a_prediction_that_exits_is_an_error_not_a_pass(part):
@@ -468,10 +540,10 @@ STUDY_CASES = [
     ("another schema", lambda r: json.dumps({"rows": []}), "lacks 'study'"),
     ("truncated", lambda r: json.dumps(r)[:300], "not a JSON study record"),
     ("claims a table", lambda r: r.update(claims={}), "claims = '{}', expected a list"),
-    ("claim without stderr", lambda r: r["claims"][0].pop("stderr") and None, "claims[0]. lacks 'stderr'"),
+    ("claim without stderr", lambda r: r["claims"][0].pop("stderr") and None, "claims[0] lacks 'stderr'"),
     ("measured a text", lambda r: r["claims"][0].update(measured="1.0"), "claims[0].measured"),
-    ("verdicts uncounted", lambda r: r.update(verdicts={}), "verdicts must count"),
-    ("spec without mode", lambda r: r["ensembles"][0]["spec"].pop("mode") and None, "ensembles[0].spec. lacks 'mode'"),
+    ("verdicts uncounted", lambda r: r.update(verdicts={}), "verdicts lacks 'agrees'"),
+    ("spec without mode", lambda r: r["ensembles"][0]["spec"].pop("mode") and None, "ensembles[0].spec lacks 'mode'"),
 ]
 
 

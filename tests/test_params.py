@@ -7,6 +7,7 @@ import pytest
 
 from mdroll.errors import ParameterError
 from mdroll import Params
+from mdroll.checks import check_nonnegative, check_number, check_positive, check_real
 from mdroll.ensemble.realizations import read_params
 
 
@@ -83,3 +84,27 @@ def test_mode_range_is_the_band_of_the_grid(L, q_min, q_max_fraction):
     k = np.arange(1, p.n_points // 2 + 1)
     inside = k[p.in_band(2 * math.pi * k / p.length)]
     assert p.mode_range == (inside[0], inside[-1])
+
+
+CHECK_CASES = [
+    (check_positive, ("E", -1.0), "E = -1.0 is not allowed: it must be positive and finite"),
+    (check_positive, ("d", math.inf, "m"), "d = inf is not allowed: it must be positive and finite (m)"),
+    (check_positive, ("E", "210e9"), "E = '210e9' is not allowed: it must be a real number, positive and finite, "
+                                     "not a str"),
+    (check_nonnegative, ("loss", np.float64(-0.1)), "loss = np.float64(-0.1) is not allowed: it must be zero or"),
+    (check_real, ("h_max", np.True_), "h_max = np.True_ is not allowed: it must be a real number, finite, not a bool"),
+    (check_real, ("h_max", math.nan, "m"), "h_max = nan is not allowed: it must be finite (m)"),
+]
+
+
+@pytest.mark.parametrize("check,args,message", CHECK_CASES, ids=[c[2].split(" is")[0] for c in CHECK_CASES])
+def test_the_number_checks_name_the_value_and_what_is_allowed(check, args, message):
+    with pytest.raises(ParameterError) as raised:
+        check(*args)
+    assert str(raised.value).startswith(message)
+
+
+def test_the_number_checks_pass_real_numbers_of_every_kind_as_floats():
+    values = [check_positive("a", 2), check_positive("a", np.int32(2)), check_nonnegative("a", 0.0),
+              check_real("a", np.float32(-2.0)), check_number("H", 0.5, "in (0, 1)", lambda v: 0 < v < 1)]
+    assert values == [2.0, 2.0, 0.0, -2.0, 0.5] and all(type(v) is float for v in values)

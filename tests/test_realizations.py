@@ -25,7 +25,8 @@ def test_params_hold_no_count_and_the_reader_takes_it_out():
     assert params == Params(**TINY) and count == 7 and type(count) is int
     assert read_params(TINY) == (Params(**TINY), None)
     for bad in (0, -1, 2.5, True, "3"):
-        with pytest.raises(ParameterError, match=f"^n_real = {bad!r} is not allowed: the number of realizations"):
+        with pytest.raises(ParameterError,
+                           match=f"^n_real = {bad!r} is not allowed: it must be a positive integer \\(realizations\\)"):
             read_params({"n_real": bad})
     assert check_count("--realizations", 3) == 3
     assert DEFAULT_REALIZATIONS == 300  # the thesis's ensemble
@@ -88,7 +89,7 @@ def test_a_cli_run_records_the_count_of_n_real(tmp_path, capsys, monkeypatch):
 
 
 def test_the_cli_count_errors_and_the_params_table(tmp_path, capsys):
-    for args, needle in ((["--set", "n_real=0"], "n_real = 0 is not allowed: the number of realizations must be"),
+    for args, needle in ((["--set", "n_real=0"], "n_real = 0 is not allowed: it must be a positive integer (realizations)"),
                          (["--realizations", "0"], "--realizations 0: the number of realizations must be at least 1"),
                          (["--set", "n_real=2.5"], "--set n_real=2.5: not an integer")):
         code, _, err = _main(capsys, "run", *args, "--device", "cpu", "--out", tmp_path / "never")

@@ -2,6 +2,9 @@
 bit; a state space of zero output leaves the kernel's numbers unchanged; at small roughness the
 time-domain force equals the linear chain's in every 1/3-octave band 100 Hz - 5 kHz."""
 
+import argparse
+import json
+
 import numpy as np
 import pytest
 
@@ -81,7 +84,36 @@ def test_cli_track_settings(cli, one_line_error, tmp_path):
                "--set", "track=ballasted-soft-pad", "--set", "track.pad_loss=0.3", "--device", "cpu",
                "--no-progress", "--out", str(tmp_path / "run"))
     assert proc.returncode == 0, proc.stderr
-    assert (tmp_path / "run" / "spectra.npz").is_file()
+    check_vibration_outputs(tmp_path / "run")
     for setting, needle in [("track.bogus=1", "track.bogus"), ("wheel=nope", "wheel = 'nope'"),
                             ("track.pad_loss=-1", "track.pad_loss")]:
         one_line_error(cli("run", "--mode", "coupled", "--set", setting, "--out", str(tmp_path / "bad")), needle)
+
+
+def test_cli_settings_give_the_track_and_the_wheel():
+    from mdroll.cli.common import build_structures
+
+    settings = ["H=0.6", "wheel.mass=400", "wheel=standard-920", "track.pad_loss=0.3"]
+    track, wheel = build_structures(argparse.Namespace(set=settings))
+    assert track == Track(pad_loss=0.3)
+    assert wheel == Wheel.preset("standard-920").with_values(mass=400.0)
+    assert build_structures(argparse.Namespace(set=["H=0.6"])) == (None, None)
+def check_vibration_outputs(out):
+    """A run on a track writes the wheel's and the rail's velocity spectra and their 1/3-octave
+    levels (the band rule of mdroll.roughness.bands by hand: the sum of 2 C dq over the band's bins)."""
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["track"]["pad_loss"] == 0.3 and summary["wheel"]["kind"] == "rigid"
+    vib = summary["bands"]["vibration"]
+    with np.load(out / "spectra.npz") as data:
+        q, dq = data["q"], data["q"][1] - data["q"][0]
+        np.testing.assert_allclose(data["wheel_velocity_psd"][1:], data["force_psd"][1:] / (500.0 * q[1:] * 10.0) ** 2,
+                                   rtol=1e-12)
+        for name in ("wheel_velocity", "rail_velocity"):
+            i = int(np.argmax(np.array(vib["bins"]) >= 3))
+            f_c = vib["frequency_Hz"][i]
+            inside = (q >= TWO_PI * f_c * 10 ** -0.05 / 10.0) & (q < TWO_PI * f_c * 10 ** 0.05 / 10.0)
+            level = 10 * np.log10(np.sum(2 * data[f"{name}_psd"][inside] * dq) / 1e-18)
+            assert vib[f"L_v_{name}_dB"][i] == pytest.approx(level, abs=1e-9)
+    rows = (out / "bands.csv").read_text().splitlines()[1:]
+    assert {row.split(",")[0] for row in rows} == {"roughness", "force", "acceleration", "wheel_velocity",
+                                                   "rail_velocity"}

@@ -56,3 +56,13 @@ def test_bad_values_name_their_key(kwargs, key):
         Wheel().with_values(colour=1)
     with pytest.raises(ParameterError, match="wheel = 'x'"):
         Wheel.preset("x")
+
+
+def test_settings_apply_the_preset_then_the_keys():
+    wheel = Wheel.from_settings(["wheel.mass=400", "wheel=standard-920", "wheel.suspension_loss=0.2"])
+    assert (wheel.kind, wheel.mass, wheel.suspension_loss) == ("modal", 400.0, 0.2)
+    assert wheel.modes == PRESETS["standard-920"]["modes"]
+    with pytest.raises(ParameterError, match="wheel.mass = 'heavy' is not allowed: it must be a number"):
+        Wheel.from_settings({"wheel.mass": "heavy"})
+    with pytest.raises(ParameterError, match="wheel.suspension_loss = True .* not a bool"):
+        Wheel(suspension_loss=True)

@@ -13,6 +13,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..physics import TWO_PI
+from .solver import array_module
 
 
 def generator(seed: int, index: int) -> np.random.Generator:
@@ -53,7 +54,7 @@ def areal_psd(qx, qy, H, q_min, q_max, anisotropy=1.0):
     return np.where(inside, np.where(inside, q, 1.0) ** (-2.0 * H - 2.0), 0.0)
 
 
-def self_affine(shape, dx, *, H, q_min, rms, seed, indices, q_max=None, anisotropy=1.0):
+def self_affine(shape, dx, *, H, q_min, rms, seed, indices, q_max=None, anisotropy=1.0, device="cpu"):
     """Cases (b) and (c): random self-affine surfaces with the areal PSD of :func:`areal_psd`.
 
     On the grid of ``shape = (Lx, Ly)`` cells (wavenumbers ``2 pi k / (L dx)`` per axis),
@@ -65,8 +66,10 @@ def self_affine(shape, dx, *, H, q_min, rms, seed, indices, q_max=None, anisotro
 
     Parameters: ``shape`` (Lx, Ly) cells; ``dx`` (m); ``H`` Hurst exponent in (0, 1); ``q_min``,
     ``q_max`` (rad/m; q_max defaults to the Nyquist pi / dx); ``rms`` (m); ``seed``; ``indices``
-    an int or a sequence of realization indices; ``anisotropy`` gamma >= 1.
-    Returns (Lx, Ly) for an int index, else (B, Lx, Ly), float64 (m).
+    an int or a sequence of realization indices; ``anisotropy`` gamma >= 1; ``device`` where the
+    inverse FFT runs: ``"cpu"`` (NumPy) or ``"cuda"``/``"cuda:N"`` (CuPy; the phases are drawn on
+    the host either way, so a surface is the same on every device to rounding).
+    Returns (Lx, Ly) for an int index, else (B, Lx, Ly), float64 (m), NumPy or CuPy.
     """
     if not (len(shape) == 2 and all(isinstance(s, (int, np.integer)) and s >= 2 for s in shape)):
         raise ParameterError(f"shape must be two cell counts >= 2, got {shape!r}")
@@ -80,9 +83,11 @@ def self_affine(shape, dx, *, H, q_min, rms, seed, indices, q_max=None, anisotro
     if not amplitude.any():
         raise ParameterError(f"no grid wavenumber lies in [q_min, q_max] = [{q_min!r}, {q_max!r}] rad/m")
     single = isinstance(indices, (int, np.integer))
+    xp, context = array_module(device)
     surfaces = []
-    for index in [indices] if single else list(indices):
-        phase = generator(seed, index).uniform(0.0, TWO_PI, size=shape)
-        surface = np.fft.ifft2(amplitude * np.exp(1j * phase)).real
-        surfaces.append(surface * (rms / np.sqrt(np.mean(surface * surface))))
-    return surfaces[0] if single else np.stack(surfaces)
+    with context:
+        for index in [indices] if single else list(indices):
+            phase = generator(seed, index).uniform(0.0, TWO_PI, size=shape)
+            surface = xp.fft.ifft2(xp.asarray(amplitude * np.exp(1j * phase))).real
+            surfaces.append(surface * (rms / xp.sqrt(xp.mean(surface * surface))))
+        return surfaces[0] if single else xp.stack(surfaces)

@@ -18,6 +18,7 @@ from pathlib import Path
 
 from ..errors import MdrollError, ParameterError, UsageError
 from ..files import read_toml
+from ..settings import split_setting
 from ..track import Track
 from ..wheel import Wheel
 from ..ensemble.realizations import COUNT_KEY, read_params
@@ -59,6 +60,11 @@ def param_options(p) -> None:
     p.add_argument("--preset", choices=sorted(PRESETS), help="quick: L = 0.2 m, 8 realizations")
 
 
+def device_option(p, what: str = "auto, cpu, cuda or cuda:N") -> None:
+    """``--device`` (default auto, :func:`mdroll.devices.resolve_device`); ``what``: its help."""
+    p.add_argument("--device", default="auto", help=what)
+
+
 def size_options(p, quick: str, full: str) -> None:
     """``--quick`` (the default) or ``--full``, into ``args.size``."""
     size = p.add_mutually_exclusive_group()
@@ -82,10 +88,11 @@ def cluster_options(p) -> None:
 
 
 @contextlib.contextmanager
-def cluster_runner(args, checkpoint=None):
+def cluster_runner(args):
     """The runner that ``--workers``/``--scheduler`` ask for (a :class:`mdroll.distributed.DaskRunner`
-    for ``run_specs(..., runner=)``), or None to run in this process; and the device the
-    ensembles then run on (a local cluster pins one worker to each GPU, which it sees as cuda:0)."""
+    for ``run_specs(..., runner=)``; set its ``checkpoint`` to keep the units), or None to run in
+    this process; and the device the ensembles then run on (a local cluster pins one worker to
+    each GPU, which it sees as cuda:0)."""
     if args.workers is None and args.scheduler is None:
         yield None, args.device
         return
@@ -100,7 +107,7 @@ def cluster_runner(args, checkpoint=None):
 
     device = args.device if args.scheduler is not None or args.device == "cpu" else "auto"
     with connect(args.workers, args.scheduler, args.device, getattr(args, "verbose", False)) as client:
-        yield DaskRunner(client, checkpoint=checkpoint), device
+        yield DaskRunner(client), device
 
 
 def progress_printer(args):
@@ -176,18 +183,20 @@ def build_params(args, base: dict | None = None) -> tuple[Params, int | None]:
         values.update(PRESETS[args.preset])
     if getattr(args, "config", None):
         values.update(load_config(args.config))
-    for item in getattr(args, "set", None) or []:
-        if "=" not in item:
-            raise UsageError(f"--set expects key=value, got {item!r}")
-        key, text = item.split("=", 1)
-        if _structure(key.strip()):
+    for key, text in _settings(args):
+        if _structure(key):
             continue  # the track's and the wheel's: :func:`build_structures`
-        values[key.strip()] = _parse_value(key.strip(), text.strip())
+        values[key] = _parse_value(key, text)
     if getattr(args, "realizations", None) is not None:
         if args.realizations < 1:
             raise UsageError(f"--realizations {args.realizations}: the number of realizations must be at least 1")
         values[COUNT_KEY] = args.realizations
     return read_params(values)
+
+
+def _settings(args) -> list[tuple[str, str]]:
+    """The ``--set`` items as (KEY, VALUE): :func:`mdroll.settings.split_setting`."""
+    return [split_setting(item, "--set KEY=VALUE") for item in getattr(args, "set", None) or []]
 
 
 def _structure(key: str) -> str | None:
@@ -200,25 +209,22 @@ def build_structures(args):
     """The run's (track, wheel) from the config file's ``[track]`` and ``[wheel]`` tables
     (:func:`config_structures`), then ``--set track=PRESET``, ``track.KEY=VALUE``,
     ``wheel=PRESET`` and ``wheel.KEY=VALUE`` on top (None where neither gives any):
-    :meth:`mdroll.track.Track.from_settings` and :meth:`mdroll.wheel.Wheel.from_settings`, each
-    preset first, then the keys in order. A bad key or value of the file names the file."""
-    settings = {name: [] for name in STRUCTURE_TABLES}
+    :meth:`mdroll.settings.Presettable.from_settings` of :class:`~mdroll.track.Track` and
+    :class:`~mdroll.wheel.Wheel`, each preset first, then the keys in order. A bad key or value
+    of the file names the file."""
     path = getattr(args, "config", None)
-    if path:
-        for name, items in config_structures(path).items():
-            try:
-                (Track if name == "track" else Wheel).from_settings(items)
-            except ParameterError as exc:
-                raise UsageError(f"config file {path}: [{name}] {exc}") from None
-            settings[name] += items
-    for item in getattr(args, "set", None) or []:
-        key, sep, text = item.partition("=")
-        name = _structure(key.strip())
-        if sep and name:
-            settings[name].append((key.strip(), text.strip()))
-    track = Track.from_settings(settings["track"]) if settings["track"] else None
-    wheel = Wheel.from_settings(settings["wheel"]) if settings["wheel"] else None
-    return track, wheel
+    tables = config_structures(path) if path else {}
+    settings = _settings(args)
+    made = []
+    for kind in (Track, Wheel):
+        from_file = tables.get(kind.PREFIX, [])
+        try:
+            kind.from_settings(from_file)
+        except ParameterError as exc:
+            raise UsageError(f"config file {path}: [{kind.PREFIX}] {exc}") from None
+        own = from_file + [(key, text) for key, text in settings if _structure(key) == kind.PREFIX]
+        made.append(kind.from_settings(own) if own else None)
+    return tuple(made)
 
 
 def format_value(value) -> str:
@@ -249,10 +255,8 @@ def output_dir(args, clear: tuple[str, ...] = ()) -> Path:
     started in the same second never share it)."""
     if args.out:
         out = Path(args.out)
-        check_directory_path(out, "--out")
+        check_output(args)
         _make_directory(out, "--out", exist_ok=True)
-        if any(entry.name != LOCK for entry in out.iterdir()) and not args.force:
-            raise UsageError(f"output directory {str(out)!r} exists and is not empty; use --force to write into it")
         lock(out, "--out")
         for name in clear:
             (out / name).unlink(missing_ok=True)
@@ -272,6 +276,17 @@ def output_dir(args, clear: tuple[str, ...] = ()) -> Path:
         lock(out, "output directory")
         return out
     raise UsageError(f"output directory: no free name under {str(base)!r}")  # pragma: no cover - 2^24 names a pid
+
+
+def check_output(args) -> None:
+    """``--out`` checked as :func:`output_dir` checks it, making nothing: for a command that makes
+    its folder only once it has something to write (a bad input then leaves nothing behind)."""
+    if not args.out:
+        return
+    out = Path(args.out)
+    check_directory_path(out, "--out")
+    if out.is_dir() and any(entry.name != LOCK for entry in out.iterdir()) and not args.force:
+        raise UsageError(f"output directory {str(out)!r} exists and is not empty; use --force to write into it")
 
 
 def check_directory_path(path: Path, option: str) -> None:

@@ -5,17 +5,21 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import json
 import math
 import sys
 from pathlib import Path
 
+from ..arguments import check_integer
 from ..devices import resolve_device
 from ..errors import ParameterError, UsageError
-from ..experiments import write_json
+from ..experiments import read_record, write_json
 from ..files import atomic_write
-from .common import (check_directory_path, cluster_runner, output_dir, output_options, progress_printer, reading,
-                     size_options)
+from ..track import Track
+from ..wheel import Wheel
+from .common import (build_structures, check_output, cluster_runner, device_option, output_dir, output_options,
+                     progress_printer, reading, size_options)
 
 #: Spectra of more bins than this get a progress line before the fit (the readers bound them).
 LARGE_SPECTRUM = 50_000
@@ -32,6 +36,9 @@ def add_parser(sub) -> None:
                    "CSV/NPZ table of frequency and PSD (declare its units)")
     p.add_argument("--known", action="append", metavar="NAME=VALUE", help="a known value in SI units (repeatable): "
                    "v0, m, R, E, nu, E_star, F_N, h0, H, q_min, q_max, a, ...")
+    p.add_argument("--set", action="append", metavar="track=PRESET|track.KEY=VALUE|wheel=...", help="the known "
+                   "track and wheel under the contact of a measured table (repeatable; docs/track.md): the model is "
+                   "then the linear chain; a coupled mdroll run on a track records its own")
     p.add_argument("--free", metavar="NAMES", help="comma-separated parameters to fit (default H,q_min,a,h0 and E_star "
                    "with m known, a_jitter)")
     p.add_argument("--band", metavar="LO:HI[Hz|rad/s]", help="fitted band, e.g. 20:20000Hz (default: the spectrum's, "
@@ -49,11 +56,11 @@ def add_parser(sub) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS", help="run the bootstrap's ensembles on an existing Dask "
                    "cluster (tcp://host:8786)")
     p.add_argument("--no-profile", action="store_true", help="skip the profile likelihoods")
-    p.add_argument("--device", default="auto", help="device of the bootstrap's and round trip's simulations")
+    device_option(p, "device of the bootstrap's and round trip's simulations")
     p.add_argument("--round-trip", action="store_true", help="run the round-trip study instead: roundtrip.json, "
                    "roundtrip.png, roundtrip.md")
     size_options(p, quick="round trip: the CPU-sized grid (default)", full="round trip: the full grid (GPU)")
-    p.add_argument("--workers", type=int, default=1, help="round trip: processes for the fits (default 1)")
+    p.add_argument("--workers", type=int, help="round trip: processes for the fits (default 1, at most the cores)")
     p.add_argument("--passes-list", metavar="K,K,...", help="round trip: only these numbers of passes")
     p.add_argument("--lengths", metavar="L,L,...", help="round trip: only these rolling distances (m)")
     p.add_argument("--report", nargs="+", metavar="JSON", help="print the Markdown tables of docs/inverse.md "
@@ -93,29 +100,41 @@ def execute(args) -> int:
 
 def _report(args) -> int:
     """``--report JSON ...``: the Markdown tables of round-trip records."""
-    from ..inverse.records import read_record
-    from ..inverse.roundtrip_report import merge_records, report
+    from ..inverse.roundtrip_report import ROUNDTRIP_RECORD, merge_records, report
 
     with _option("--report"):
-        records = [read_record(name) for name in args.report]
+        records = [read_record(name, ROUNDTRIP_RECORD) for name in args.report]
     print(report(merge_records(records)))
     return 0
 
 
 def _round_trip(args) -> int:
     """``--round-trip``: spectra simulated at known parameters, fitted, and the estimates compared."""
-    from ..inverse.roundtrip import run_study
+    from ..inverse.roundtrip import check_study_counts, run_study
     from ..inverse.roundtrip_report import format_table, plot_study
 
     if args.spectrum:
         raise UsageError("--round-trip simulates its own spectra: give no SPECTRUM")
-    if args.workers < 1:
-        raise UsageError(f"--workers {args.workers}: must be at least 1")
+    fitting = [option for option, value in (("--known", args.known), ("--free", args.free), ("--band", args.band),
+                                            ("--quantity", args.quantity), ("--window", args.window),
+                                            ("--frequency-unit", args.frequency_unit), ("--sided", args.sided),
+                                            ("--density", args.density), ("--passes", args.passes),
+                                            ("--bootstrap", args.bootstrap or None), ("--scheduler", args.scheduler),
+                                            ("--discrepancy", args.discrepancy)) if value is not None]
+    if fitting:
+        raise UsageError(f"{', '.join(fitting)}: for fitting a SPECTRUM, not for --round-trip (which sets its own)")
+    passes = _numbers(args.passes_list, int, "--passes-list")
+    lengths = _numbers(args.lengths, float, "--lengths")
+    workers = 1 if args.workers is None else args.workers
+    for option, keyword, value in (("--workers", "workers", workers), ("--passes-list", "passes", passes),
+                                   ("--correction-passes", "correction_passes", args.correction_passes),
+                                   ("--repeats", "repeats", args.repeats), ("--lengths", "lengths", lengths)):
+        with _option(option):
+            check_study_counts(**{keyword: value})
+    device = resolve_device(args.device)  # every option checked before the folder is made
     out = output_dir(args, clear=INVERT_OUTPUTS)
-    record = run_study(args.size or "quick", device=resolve_device(args.device), folder=out,
-                       progress=progress_printer(args), workers=args.workers,
-                       passes=_numbers(args.passes_list, int, "--passes-list"),
-                       lengths=_numbers(args.lengths, float, "--lengths"), correction=args.correction or "simulated",
+    record = run_study(args.size or "quick", device=device, folder=out, progress=progress_printer(args),
+                       workers=workers, passes=passes, lengths=lengths, correction=args.correction or "simulated",
                        repeats=args.repeats, correction_passes=args.correction_passes,
                        realistic_only=args.realistic_only)
     written = ["roundtrip.json", "roundtrip.md"]
@@ -134,27 +153,48 @@ def _round_trip(args) -> int:
 def _fit(args) -> int:
     """SPECTRUM: the fit, its plot and table, and the bootstrap's intervals with ``--bootstrap N``."""
     from ..inverse import fit, read_spectrum
+    from ..inverse.observed import MAX_PASSES
     from ..inverse.plot import plot_fit
     from ..inverse.roundtrip import bootstrap, check_replicates
 
     path = Path(args.spectrum)
     if path.is_dir():
         path = path / "spectra.npz"
+    alone = [option for option, value in (("--workers", args.workers), ("--passes-list", args.passes_list),
+                                          ("--lengths", args.lengths), ("--repeats", args.repeats),
+                                          ("--realistic-only", args.realistic_only or None)) if value is not None]
+    if alone:
+        raise UsageError(f"{', '.join(alone)}: for --round-trip only, not for fitting a SPECTRUM")
     if args.bootstrap:
         with _option("--bootstrap"):
             check_replicates(args.bootstrap)
-    if args.out:
-        check_directory_path(Path(args.out), "--out")
+    elif args.scheduler:
+        raise UsageError("--scheduler runs the bootstrap's ensembles: give --bootstrap N with it")
+    for option, value, maximum in (("--passes", args.passes, MAX_PASSES), ("--bin", args.bin, None),
+                                   ("--correction-passes", args.correction_passes, MAX_PASSES)):
+        if value is not None:
+            with _option(option):
+                check_integer(option.lstrip("-").replace("-", "_"), value, 1, maximum=maximum)
+    device = resolve_device(args.device)
+    check_output(args)
     with reading("spectrum file", path):
         spectrum = read_spectrum(path, quantity=args.quantity, window=args.window, frequency_unit=args.frequency_unit,
                                  sided=args.sided, density=args.density, passes=args.passes)
+    spectrum = _with_track(args, spectrum, path)
+    simulated = (args.correction or ("simulated" if spectrum.simulation else "none")) == "simulated"
+    if args.correction_passes is not None and not simulated:
+        raise UsageError(f"--correction-passes {args.correction_passes}: {path} is fitted without the simulated "
+                         "correction (a table's default, or --correction none), which alone runs those ensembles")
+    if args.bootstrap and not spectrum.simulation:
+        raise UsageError(f"--bootstrap: {path} is a table; the bootstrap simulates at the estimate with the "
+                         "simulation's L and dx, which only an mdroll spectra.npz holds")
     if spectrum.omega.size > LARGE_SPECTRUM:
         progress_printer(args)(f"{path}: {spectrum.omega.size} bins; the fit's time grows with them (--bin K "
                                "averages K neighbouring bins first)")
     free = [n.strip() for n in args.free.split(",") if n.strip()] if args.free else None
     result = fit(spectrum, known=_known(args.known), free=free, band=_band(args.band) if args.band else None,
                  passes=args.passes, bin=args.bin, profile=not args.no_profile, correction=args.correction,
-                 correction_passes=args.correction_passes, device=resolve_device(args.device), fill_check=args.fill_check,
+                 correction_passes=args.correction_passes, device=device, fill_check=args.fill_check,
                  discrepancy=_discrepancy(args.discrepancy))
     if args.bootstrap:
         # the replicates' ensembles on an existing Dask cluster with --scheduler (--workers is the
@@ -167,7 +207,8 @@ def _fit(args) -> int:
     with atomic_write(out / "inverse.png") as file:
         plot_fit(result, file)
     with atomic_write(out / "inverse.json", "w") as file:
-        json.dump({"source": str(path), **result.to_dict()}, file, indent=1)
+        track = {"known_track": spectrum.known_track.describe()} if spectrum.known_track is not None else {}
+        json.dump({"source": str(path), **track, **result.to_dict()}, file, indent=1)
     print(result.table())
     if not result.success:
         print(f"mdroll: warning: the optimizer stopped without converging ({result.message}); the estimates and "
@@ -185,6 +226,28 @@ def _fit(args) -> int:
               "(inverse.json: \"accepted\": false)", file=sys.stderr)
         return REJECTED
     return 0
+
+
+def _with_track(args, spectrum, path):
+    """The spectrum with the track and wheel of ``--set`` (a table's), refused for a run that records
+    its own and with ``--bootstrap`` (its ensembles roll on the rigid rail)."""
+    from ..inverse.track_model import KnownTrack
+
+    if spectrum.known_track is not None and args.bootstrap:
+        raise UsageError(f"--bootstrap with {path}, a run on a track: the bootstrap's ensembles roll on the rigid rail")
+    if not args.set:
+        return spectrum
+    bad = [item for item in args.set if item.split("=", 1)[0].split(".", 1)[0].strip() not in ("track", "wheel")]
+    if bad:
+        raise UsageError(f"--set {bad[0]}: invert takes only the track's and the wheel's settings (track=PRESET, "
+                         "track.KEY=VALUE, wheel=PRESET, wheel.KEY=VALUE)")
+    if spectrum.known_track is not None:
+        raise UsageError(f"--set with {path}: the run records its own track and wheel; drop --set")
+    if args.bootstrap:
+        raise UsageError("--bootstrap with --set track/wheel: the bootstrap's ensembles roll on the rigid rail")
+    track, wheel = build_structures(args)
+    return dataclasses.replace(spectrum, known_track=KnownTrack(track or Track.preset("rigid"),
+                                                                wheel or Wheel.preset("rigid")))
 
 
 @contextlib.contextmanager

@@ -6,7 +6,8 @@ from pathlib import Path
 
 from ..ensemble.result import EnsembleResult
 from ..errors import UsageError
-from .common import check_directory_path, output_dir, output_options
+from ..files import remove_stale_temporaries
+from .common import check_output, output_dir, output_options
 from .run import RUN_OUTPUTS, write_outputs
 
 
@@ -21,8 +22,10 @@ def execute(args) -> int:
     missing = [str(p) for p in paths if not p.is_file()]
     if missing:
         raise UsageError(f"no spectra.npz at {', '.join(missing)}")
-    if args.out:
-        check_directory_path(Path(args.out), "--out")
+    check_output(args)
     result = EnsembleResult.merge([EnsembleResult.load(p) for p in paths])
-    write_outputs(result, output_dir(args, clear=RUN_OUTPUTS))
+    out = output_dir(args, clear=RUN_OUTPUTS)
+    for name in RUN_OUTPUTS:  # the directory is locked: no other writer
+        remove_stale_temporaries(out / name)
+    write_outputs(result, out)
     return 0

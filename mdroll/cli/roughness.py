@@ -3,11 +3,10 @@ filter beside CNOSSOS-EU, and measured profiles (docs/roughness.md)."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from ..devices import resolve_device
+from ..ensemble.lines import check_seed
 from ..errors import UsageError
-from .common import Parser, check_directory_path, output_dir, output_options, size_options
+from .common import Parser, check_output, device_option, output_dir, output_options, size_options
 
 
 def add_parser(sub) -> None:
@@ -15,12 +14,13 @@ def add_parser(sub) -> None:
                        "profiles (docs/roughness.md)")
     tasks = p.add_subparsers(dest="task", required=True, parser_class=Parser)
     check = tasks.add_parser("check", help="line spectra, dB round trip, measured profile, eq 39 high band, eq 63, "
-                             "coupled vs decoupled, contact filter: roughness.json; exit 1 on a failure")
+                             "coupled vs decoupled, contact filter, the wheel on a track at small and large "
+                             "roughness: roughness.json; exit 1 on a failure")
     size_options(check, quick="sizes for a CPU (default)", full="thesis-scale ensembles (GPU)")
     check.add_argument("--only", action="append", metavar="NAME", help="run only this study (repeatable): "
-                       "lines, round_trip, measured_profile, high_band, eq63, dynamics, contact_filter")
+                       "lines, round_trip, measured_profile, high_band, eq63, dynamics, contact_filter, track")
     check.add_argument("--seed", type=int, default=0)
-    check.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
+    device_option(check)
     output_options(check)
     filt = tasks.add_parser("filter", help="the MDR contact filter beside CNOSSOS-EU A3: contact_filter.csv and .png")
     output_options(filt)
@@ -41,13 +41,13 @@ def execute(args) -> int:
         unknown = RAILWAY_STUDIES.unknown(args.only or ())
         if unknown:
             raise UsageError(f"--only: unknown study(ies) {unknown}; valid ones are: {', '.join(RAILWAY_STUDIES)}")
+        check_seed(args.seed)
         device = resolve_device(args.device)
         passed = tasks.check(args.size or "quick", args.seed, device, output_dir(args), args.only)
         return 0 if passed else 1
     if args.task == "filter":
         tasks.contact_filter(output_dir(args))
         return 0
-    if args.out:
-        check_directory_path(Path(args.out), "--out")
+    check_output(args)
     tasks.profile(args.file, args.dx, args.segment, lambda: output_dir(args))
     return 0

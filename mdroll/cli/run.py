@@ -16,7 +16,7 @@ from ..forces.registry import (ALGORITHMS, DEFAULT_ALGORITHMS, REGISTRY, algorit
                                default_algorithm)
 from ..ensemble.batching import check_count_fits, check_run_fits, realization_bytes
 from ..ensemble.checkpoint import CHECKPOINT, read_checkpoint
-from ..ensemble.lines import check_seed
+from ..ensemble.lines import MAX_INDEX, check_seed
 from ..ensemble.pipeline import run_ensemble
 from ..ensemble.realizations import DEFAULT_REALIZATIONS
 from ..ensemble.result import result_summary
@@ -25,8 +25,8 @@ from ..ensemble.validity import parameter_concerns, result_concerns
 from ..errors import SchedulerLost, UsageError
 from ..files import atomic_write, remove_stale_temporaries
 from ..railway.report import write_band_outputs
-from .common import (build_params, build_structures, cluster_options, cluster_runner, format_value, lock, output_dir, output_options,
-                     param_options)
+from .common import (build_params, build_structures, check_output, cluster_options, cluster_runner, device_option,
+                     format_value, lock, output_dir, output_options, param_options)
 
 #: What ``run`` and ``merge`` write; ``--force`` removes the old ones first, so that a finished
 #: run's files never mix with a new run's.
@@ -48,7 +48,7 @@ def add_parser(sub) -> None:
         f"{entry.name}: {entry.description}, {entry.complexity.text}" for entry in REGISTRY.values()))
     p.add_argument("--mode", choices=["decoupled", "coupled"], help="default decoupled")
     p.add_argument("--boundary", choices=["open", "periodic"], help="default open")
-    p.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
+    device_option(p)
     p.add_argument("--batch", type=int, help="realizations per batch (default: from free memory)")
     p.add_argument("--memory-limit", type=float, metavar="GIB", help="cap the memory batches are sized from (GiB)")
     estimator = p.add_mutually_exclusive_group()
@@ -71,10 +71,7 @@ def execute(args) -> int:
         return _run_distributed(args)
     device = resolve_device(args.device)
     if args.resume:
-        if args.out:
-            raise UsageError(f"--out {args.out} with --resume {args.resume}: a resumed run writes into its own "
-                             "directory; drop --out")
-        out = Path(args.resume)
+        out = _resumed_folder(args)
         if not (out / CHECKPOINT).is_file():
             raise UsageError(f"--resume {args.resume}: no {CHECKPOINT} there to continue from")
         lock(out, "--resume")
@@ -97,9 +94,9 @@ def execute(args) -> int:
             raise UsageError(f"--memory-limit {args.memory_limit:g} GiB is too small: one realization of "
                              f"{params.n_points} springs needs {need / 2**30:.3g} GiB (a batch gets half the limit)")
     check_run_fits(params, device, memory)
+    track, wheel = build_structures(args)
     if not args.resume:
         out = output_dir(args, clear=RUN_OUTPUTS + (CHECKPOINT,))
-    track, wheel = build_structures(args)
     for name in RUN_OUTPUTS + (CHECKPOINT,):  # the directory is locked: no other writer
         remove_stale_temporaries(out / name)
     result = run_ensemble(params, realizations=realizations, device=device, batch=args.batch,
@@ -109,15 +106,23 @@ def execute(args) -> int:
     return 0
 
 
+def _resumed_folder(args) -> Path:
+    """The folder of ``--resume DIR``, which a resumed run writes into (``--out`` is refused)."""
+    if args.out:
+        raise UsageError(f"--out {args.out} with --resume {args.resume}: a resumed run writes into its own "
+                         "directory; drop --out")
+    return Path(args.resume)
+
+
 def _run_distributed(args) -> int:
     """``mdroll run --workers N | --scheduler ADDRESS``: the run's units on a Dask cluster; every
     finished unit is kept in OUT/units, from which ``--resume OUT`` continues (the same run:
     options that would change it are refused, naming them)."""
+    if build_structures(args) != (None, None):
+        raise UsageError("--set track/wheel is not allowed with --workers or --scheduler: the cluster's runs are "
+                         "on the rigid track; run on a track without them")
     if args.resume:
-        if args.out:
-            raise UsageError(f"--out {args.out} with --resume {args.resume}: a resumed run writes into its own "
-                             "directory; drop --out")
-        out = Path(args.resume)
+        out = _resumed_folder(args)
         (saved,) = saved_specs(out / "units")
         spec = _distributed_spec(args, saved.params.as_dict(), {k: getattr(saved, k) for k in RUN_DEFAULTS},
                                  saved.indices)
@@ -130,8 +135,11 @@ def _run_distributed(args) -> int:
         lock(out, "--resume")
     else:
         spec = _distributed_spec(args, None, RUN_DEFAULTS, None)
-        out = output_dir(args, clear=RUN_OUTPUTS)
-    with cluster_runner(args, checkpoint=out / "units") as (runner, device):
+        check_output(args)
+    with cluster_runner(args) as (runner, device):
+        if not args.resume:  # made once the cluster answers: a bad address leaves no folder
+            out = output_dir(args, clear=RUN_OUTPUTS)
+        runner.checkpoint = (out / "units").absolute()
         try:
             (result,) = runner.run_specs([spec], device=device, progress=not args.no_progress)
         except SchedulerLost as exc:
@@ -187,8 +195,8 @@ def _realizations(args, count: int | None) -> range:
     None) from ``--first``."""
     count = DEFAULT_REALIZATIONS if count is None else count
     first = args.first or 0
-    if first < 0:
-        raise UsageError(f"--first {first}: the first realization index must be >= 0")
+    if not 0 <= first <= MAX_INDEX - max(count, 1) + 1:
+        raise UsageError(f"--first {first}: the realization indices must lie in 0 .. {MAX_INDEX} (2^63 - 1)")
     check_count_fits(count)
     return range(first, first + count)
 

@@ -5,10 +5,12 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from ..ensemble.lines import check_seed
 from ..experiments import provenance
 from ..validation import CHECKS, SIZES, EnsembleCache, run_checks, select
 from ..validation.report import format_table, write_junit, write_report
-from .common import check_file_path, cluster_options, cluster_runner, output_dir, output_options, size_options
+from .common import (check_file_path, check_output, cluster_options, cluster_runner, device_option, output_dir,
+                     output_options, size_options)
 
 
 def add_parser(sub) -> None:
@@ -23,7 +25,7 @@ def add_parser(sub) -> None:
     p.add_argument("--installed", action="store_true",
                    help="also run the checks of installed packages (entry-point group mdroll.checks)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
+    device_option(p)
     p.add_argument("--cache-dir", metavar="DIR", help="ensemble cache (default $MDROLL_CACHE_DIR, else "
                    "~/.cache/mdroll/ensembles)")
     p.add_argument("--no-cache", action="store_true", help="neither read nor write the ensemble cache")
@@ -36,14 +38,16 @@ def execute(args) -> int:
     size = args.size or "quick"
     if args.junit_xml:
         check_file_path(Path(args.junit_xml), "--junit-xml")
+    check_seed(args.seed)
     providers = select(args.only or (), args.check, args.checks, args.installed)
     cache = None if args.no_cache else EnsembleCache(args.cache_dir)
-    out = output_dir(args)
+    check_output(args)
     began = time.perf_counter()
     with cluster_runner(args) as (runner, device):
         results = run_checks(size, seed=args.seed, device=device, progress=not args.no_progress, providers=providers,
                              runner=runner, cache=cache)
     meta = provenance(device, size, args.seed, SIZES.rung(size))
+    out = output_dir(args)  # made once there is a report to write: a failing check leaves no folder
     if cache is not None:
         meta["cache"] = {"dir": str(cache.directory), "hits": cache.hits, "misses": cache.misses}
     write_report(results, out, meta)

@@ -94,12 +94,3 @@ def coupled_series(prepared, params: Params, algorithm: str, device: str, d_star
     )
     return force, accel
 
-
-def vibration_psd(result, form: ModalForm, params: Params):
-    """The velocity PSD ((m/s)^2 m, two-sided per rad/m) and its standard error of the point a
-    modal state space moves, driven by the contact force of a coupled ``result``: the force's
-    spectra times ``|omega H_d|^2``, H_d the state space's stepped transfer
-    (:meth:`~mdroll.statespace.ModalForm.discrete_response` at dt), exact for the stepped
-    system because it is linear in the force, realization by realization."""
-    gain = np.abs(result.omega * form.discrete_response(result.omega / (2 * np.pi), params.dt)) ** 2
-    return gain * result.force_psd, gain * result.force_psd_stderr

@@ -21,6 +21,10 @@ from ..fft import irfft_rows
 CPU_SPAN = 4096
 
 
+#: The largest realization index (an int64).
+MAX_INDEX = 2**63 - 1
+
+
 def realization_indices(realizations) -> np.ndarray:
     """``int R`` -> 0..R-1; a sequence of distinct non-negative integers -> those indices (int64)."""
     if isinstance(realizations, (bool, np.bool_)):
@@ -33,6 +37,9 @@ def realization_indices(realizations) -> np.ndarray:
         raise ParameterError(f"realizations must be an int or a sequence of ints, got {type(realizations).__name__}")
     if isinstance(realizations, range):
         check_count_fits(len(realizations))
+        if len(realizations) and max(realizations[0], realizations[-1]) > MAX_INDEX:
+            raise ParameterError(f"realizations {realizations.start}..{realizations.stop - 1} is not allowed: an "
+                                 f"index must be at most {MAX_INDEX} (2^63 - 1)")
     indices = np.asarray(realizations)
     if indices.ndim != 1 or indices.size == 0 or not np.issubdtype(indices.dtype, np.integer):
         raise ParameterError(f"realizations must be a non-empty 1D sequence of integers, got {realizations!r}")

@@ -35,6 +35,7 @@ from .lines import check_seed, realization_indices, rough_lines
 from ..roughness.kinds import check_spectrum
 from ..roughness.line_grid import from_params, line_rms
 from .result import EnsembleResult
+from .vibration import with_structures
 from .psd import psd_moments_of_batch, series_sums, to_host
 from .realizations import DEFAULT_REALIZATIONS
 from .workers import CpuWorkers, StageClock, progress_bar
@@ -154,15 +155,16 @@ def run_ensemble(
         only: the contact point then moves with the rail's fitted state space (the wheel
         standing above a sleeper) and a modal wheel's modes
         (:func:`mdroll.ensemble.coupled.contact_compliance`); the roughness moves under a
-        stationary wheel. The wheel and rail vibrations are linear in the force:
-        :func:`mdroll.ensemble.coupled.vibration_psd`.
+        stationary wheel. The result records them; the wheel and rail vibration spectra follow
+        from the force's (:meth:`EnsembleResult.vibration`, :mod:`mdroll.ensemble.vibration`).
 
     Returns
     -------
     EnsembleResult
         Per bin: ``q`` (rad/m), ``omega = q v0`` (rad/s), ``force_psd`` and its standard error
         (N^2 m: two-sided, per rad/m), ``accel_psd`` and its standard error ((m/s^2)^2 m); and
-        ``force_mean``, ``force_rms`` (N), ``n_real``, ``steps``.
+        ``force_mean``, ``force_rms`` (N), ``n_real``, ``steps``. On a track ``accel_psd`` is the
+        wheel's acceleration at the contact, and ``track``, ``wheel`` record the structures.
     """
     # every argument checked here, once
     check_params(params)
@@ -297,13 +299,14 @@ def run_ensemble(
     q, omega, force_psd, force_psd_stderr, accel_psd, accel_psd_stderr = rows
     stage.settle()
     n = len(indices)
-    return EnsembleResult(
+    result = EnsembleResult(
         q=q, omega=omega, force_psd=force_psd, force_psd_stderr=force_psd_stderr, accel_psd=accel_psd,
         accel_psd_stderr=accel_psd_stderr, n_real=n, params=params, seed=seed, algorithm=algorithm,
         mode=mode, boundary=boundary, device=device, steps=totals.steps, force_mean=totals.force_mean_sum / n,
         force_rms=totals.force_rms_sum / n, contact_lost_steps=totals.lost, timings=timings,
         batch=totals.largest_batch, realizations=indices.tolist(), window=bool(window),
     )
+    return with_structures(result, track, wheel)
 
 
 def _cpu_parts(idx: np.ndarray, size: int) -> list[np.ndarray]:

@@ -4,9 +4,7 @@ which may name the count beside the :class:`~mdroll.Params` fields."""
 
 from __future__ import annotations
 
-import numpy as np
-
-from ..errors import ParameterError
+from ..arguments import check_integer
 from ..params import Params
 
 #: Realizations a run averages when it names no count (``run_ensemble(realizations=None)``, the
@@ -19,10 +17,7 @@ COUNT_KEY = "n_real"
 
 def check_count(name: str, value) -> int:
     """A realization count: an integer of at least 1, else a :class:`ParameterError` naming ``name``."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise ParameterError(f"{name} = {value!r} is not allowed: the number of realizations must be an integer "
-                             "of at least 1")
-    return int(value)
+    return check_integer(name, value, 1, "realizations")
 
 
 def read_params(data) -> tuple[Params, int | None]:

@@ -16,6 +16,7 @@ from ..params import Params
 from .psd import RunningMoments, wavenumbers
 from .realizations import COUNT_KEY, read_params
 from .resolution import estimator_name, resolution
+from .vibration import VIBRATION, rail_form, structures_of, vibration_spectra
 
 #: The stages of a run whose times a result reports, in the order a batch passes them.
 STAGES = ("generate", "build", "force", "response", "spectra")
@@ -27,7 +28,9 @@ RESULT_MASKS = ("force_unresolved", "accel_unresolved")
 RESULT_META = ("n_real", "seed", "algorithm", "mode", "boundary", "window", "device", "steps", "force_mean",
                "force_rms", "contact_lost_steps", "timings", "batch", "realizations")
 #: The run settings merged results must share (besides their physical parameters).
-MERGE_SAME = ("seed", "algorithm", "mode", "boundary", "window", "steps")
+MERGE_SAME = ("seed", "algorithm", "mode", "boundary", "window", "steps", "track", "wheel")
+#: The fields of a coupled run on a track (None for the rigid track and wheel: then absent from its files).
+STRUCTURES = ("track", "wheel")
 
 
 def compatible_versions(a: str, b: str) -> bool:
@@ -58,6 +61,10 @@ class EnsembleResult:
     window : whether a Hann window was applied before the FFTs (None: unknown, a file written
         before the window was recorded); results differing in it are never merged.
     resolution : the bins this record and estimator cannot resolve (:mod:`mdroll.ensemble.resolution`).
+    track, wheel : the fields of the :class:`~mdroll.track.Track` and :class:`~mdroll.wheel.Wheel`
+        of a coupled run on a track (None for the rigid ones): its wheel and rail vibration
+        spectra are :meth:`vibration` (:mod:`mdroll.ensemble.vibration`), and ``accel_psd`` is
+        the wheel's acceleration at the contact.
 
     Plots: :func:`mdroll.plotting.plot_psd`.
     """
@@ -84,11 +91,18 @@ class EnsembleResult:
     realizations: list = field(default_factory=list)
     window: bool | None = False
     mdroll_version: str = __version__
+    track: dict | None = None
+    wheel: dict | None = None
 
     @property
     def resolution(self):
         """The unresolved bins of both spectra (:func:`mdroll.ensemble.resolution.resolution`)."""
         return resolution(self.omega, self.force_psd, self.accel_psd, self.params.omega_0, self.window, self.mode)
+
+    def vibration(self) -> dict:
+        """The wheel's and the rail's velocity PSDs and standard errors of a run on a track
+        (:func:`mdroll.ensemble.vibration.vibration_spectra`); empty for the rigid track and wheel."""
+        return vibration_spectra(self) if self.track or self.wheel else {}
 
     def save(self, path) -> Path:
         """Write an ``.npz`` with the spectra, the parameters (:meth:`Params.as_dict`; the
@@ -98,11 +112,14 @@ class EnsembleResult:
         if path.suffix != ".npz":
             path = path.with_name(path.name + ".npz")
         meta = {"params": self.params.as_dict(), **{k: getattr(self, k) for k in RESULT_META},
-                "mdroll_version": __version__}
+                "mdroll_version": __version__, **{k: getattr(self, k) for k in STRUCTURES if getattr(self, k)}}
         flags = self.resolution
         masks = {f"{quantity}_unresolved": flags.mask(quantity) for quantity in ("force", "accel")}
+        # derived from the force spectra, so not read back
+        vibration = {f"{name}_psd{tail}": values for name, pair in self.vibration().items()
+                     for tail, values in zip(("", "_stderr"), pair)}
         with atomic_write(path) as file:
-            np.savez(file, **{k: getattr(self, k) for k in RESULT_ARRAYS}, **masks, meta=json.dumps(meta))
+            np.savez(file, **{k: getattr(self, k) for k in RESULT_ARRAYS}, **masks, **vibration, meta=json.dumps(meta))
         return path
 
     @classmethod
@@ -183,7 +200,8 @@ class EnsembleResult:
             force_rms=sum(r.force_rms * r.n_real for r in results) / n,
             contact_lost_steps=sum(r.contact_lost_steps for r in results),
             timings={k: sum(r.timings.get(k, 0.0) for r in results) for k in STAGES},
-            batch=max(r.batch for r in results), realizations=indices.tolist(), window=first.window,
+            batch=max(r.batch for r in results), realizations=indices.tolist(), window=first.window, track=first.track,
+            wheel=first.wheel,
         )
 
 
@@ -238,4 +256,20 @@ def result_summary(result: EnsembleResult) -> dict:
         "force_mean_N": result.force_mean, "force_rms_N": result.force_rms,
         "contact_lost_steps": result.contact_lost_steps,
         "timings_s": result.timings,
+        **_structures_summary(result),
     }
+
+
+def _structures_summary(result: EnsembleResult) -> dict:
+    """A run on a track: its track and wheel, where the wheel stands, and what the vibration
+    spectra are (nothing for the rigid track and wheel)."""
+    if not (result.track or result.wheel):
+        return {}
+    track, _ = structures_of(result)
+    fit = rail_form(track).error_db if track.support != "rigid" else 0.0
+    return {"track": result.track, "wheel": result.wheel, "vibration": {
+        "quantities": [name for name in VIBRATION if name in result.vibration()],
+        "definition": "velocity at the contact, S_v = omega^2 |alpha|^2 S_F per bin (mdroll.ensemble.vibration): "
+                      "alpha the stepped rail state space above a sleeper and the wheel's receptance; accel_psd "
+                      "is the wheel's acceleration at the contact",
+        "rail_fit_error_dB": fit}}

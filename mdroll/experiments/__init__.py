@@ -6,7 +6,7 @@ claims on top of it.
   parameters per rung in a :class:`Ladder`.
 - :mod:`.registry`: :class:`Registry`, experiments by name, with one error for an unknown name.
 - :mod:`.record`: the JSON record's provenance (mdroll version, git commit, device, date,
-  parameters, seed, size) and its atomic writer.
+  parameters, seed, size), its atomic writer and its checked reader (:class:`RecordKind`).
 - :mod:`.table`: the one table writer (aligned text and Markdown).
 - :mod:`.figures`: :class:`Figure` and the one PNG writer.
 
@@ -15,15 +15,16 @@ device) returning a JSON-ready dict or the package's own result records; state i
 ``Ladder(test=..., quick=..., full=...)``; register it in its package's :class:`Registry`; start
 its record with ``provenance(device, size, seed, rung)``; write the record with
 :func:`write_json`, its tables with :func:`text_table` or :func:`markdown_table` and its
-figures as :class:`Figure` objects with :func:`write_figure`. The thesis studies
+figures as :class:`Figure` objects with :func:`write_figure`; whatever reads records back states
+their fields in a :class:`RecordKind` and reads them with :func:`read_record`. The thesis studies
 (:mod:`mdroll.studies`) are the fullest example.
 """
 
 from .figures import Figure, render_png, write_figure, write_figures
 from .ladder import SIZES, Ladder
-from .record import git_commit, provenance, write_json
+from .record import RecordKind, git_commit, provenance, read_record, write_json
 from .registry import Registry
 from .table import markdown_table, text_table
 
-__all__ = ["SIZES", "Figure", "Ladder", "Registry", "git_commit", "markdown_table", "provenance", "render_png",
-           "text_table", "write_figure", "write_figures", "write_json"]
+__all__ = ["SIZES", "Figure", "Ladder", "RecordKind", "Registry", "git_commit", "markdown_table", "provenance",
+           "read_record", "render_png", "text_table", "write_figure", "write_figures", "write_json"]

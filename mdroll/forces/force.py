@@ -11,7 +11,8 @@ import math
 
 import numpy as np
 
-from ..arguments import check_choice, check_params, check_positive, check_real, check_tree_options
+from ..arguments import check_choice, check_params, check_tree_options
+from ..checks import check_positive, check_real
 from ..devices import device_of, resolve_device, to_warp, warp
 from ..errors import ParameterError
 from ..params import Params
@@ -115,6 +116,11 @@ def contact_force(
     leaf_size, band_limit = check_tree_options(leaf_size, band_limit)
     d = check_positive("d", params.d0 if d is None else d, "m, the indentation")
     h_max = None if h_max is None else check_real("h_max", h_max, "m")
+    if not hasattr(lines, "dtype"):  # a list of numbers: as NumPy
+        try:
+            lines = np.asarray(lines, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ParameterError(f"lines must be an array of heights (m), got {type(lines).__name__}") from None
     device = resolve_device(device if device is not None else device_of(lines) or "cpu")
     host_input = isinstance(lines, np.ndarray)
     if not isinstance(lines, wp.array) and np.dtype(getattr(lines, "dtype", np.float64)) != np.float64:

@@ -20,6 +20,7 @@ import dataclasses
 import numpy as np
 import scipy.optimize
 
+from ..arguments import check_integer
 from ..ensemble.spec import run_specs
 from ..errors import ParameterError
 from .acceptance import acceptance
@@ -29,7 +30,7 @@ from .fill_check import FILL_CHECKS, with_fill_check
 from .forward_model import Correction
 from .intervals import correction_record, covariance, derived_quantities, intervals
 from .likelihood import Problem, from_fitted, goodness_of_fit, to_fitted
-from .observed import Spectrum
+from .observed import MAX_PASSES, Spectrum
 from .profiles import profiles
 from .result import FitResult
 from .starting_values import starting_values
@@ -54,7 +55,7 @@ def fit(spectrum: Spectrum, known: dict | None = None, free=None, band=None, pas
     start : starting values for some free parameters (SI), instead of the data-driven ones.
     profile : compute the profile likelihood of each free parameter (``profile_points`` each).
     correction : "simulated" (the default for a spectrum that carries its simulation's settings,
-        an mdroll one): the closed form times the ratio r(q) that simulations at the estimate
+        an mdroll one, on the rigid rail; not allowed on a known track, whose default is "none"): the closed form times the ratio r(q) that simulations at the estimate
         measure (:mod:`mdroll.inverse.correction`), iterated, with r's uncertainty in the
         intervals; "none" (the default for a table): the closed form alone; or a
         :class:`~mdroll.inverse.forward_model.Correction` to hold fixed (e.g.
@@ -78,7 +79,7 @@ def fit(spectrum: Spectrum, known: dict | None = None, free=None, band=None, pas
 
     Returns a :class:`~mdroll.inverse.result.FitResult`. Bad input ends with a ParameterError naming it.
     """
-    _check_arguments(spectrum, known, free, passes, bin)
+    _check_arguments(spectrum, known, free, passes, bin, correction_passes)
     if fill_check not in FILL_CHECKS:
         raise ParameterError(f"fill_check = {fill_check!r} is not allowed: use one of {', '.join(map(repr, FILL_CHECKS))}")
     mode = _correction_mode(correction, spectrum)
@@ -95,12 +96,10 @@ def fit(spectrum: Spectrum, known: dict | None = None, free=None, band=None, pas
     p0 = starting_values(problem, start or {})
     theta, best = estimate(problem, np.clip(problem.theta(p0), problem.lower, problem.upper))
     if simulate:
-        k_c = correction_passes
-        if k_c is not None and (isinstance(k_c, bool) or not isinstance(k_c, (int, np.integer)) or k_c < 1):
-            raise ParameterError(f"correction_passes = {k_c!r} is not allowed: it must be a positive integer")
         closed_form = _result(problem, theta, best, spectrum, profile=False, profile_points=profile_points)
         result = iterate([spectrum], [closed_form], refit=lambda jobs: [refit(job, bin) for job in jobs],
-                         simulate=lambda specs: run_specs(specs, device=device, runner=runner), passes=k_c)[0]
+                         simulate=lambda specs: run_specs(specs, device=device, runner=runner),
+                         passes=correction_passes)[0]
         if profile:
             final = result
             result = refit((spectrum, final, final.correction_used), bin, profile=True, profile_points=profile_points)
@@ -194,9 +193,9 @@ def _result(problem: Problem, theta, best, spectrum: Spectrum, profile: bool, pr
     return result
 
 
-def _check_arguments(spectrum, known, free, passes, bin) -> None:
-    """The types of :func:`fit`'s arguments, each named in a ParameterError (their values are
-    checked where they are used)."""
+def _check_arguments(spectrum, known, free, passes, bin, correction_passes) -> None:
+    """The types of :func:`fit`'s arguments and the bounds of its counts, each named in a
+    ParameterError (the other values are checked where they are used)."""
     if not isinstance(spectrum, Spectrum):
         raise ParameterError(f"spectrum must be an mdroll.inverse.Spectrum (read_spectrum, table_spectrum or "
                              f"from_result), got {type(spectrum).__name__}")
@@ -205,14 +204,19 @@ def _check_arguments(spectrum, known, free, passes, bin) -> None:
     if free is not None and (isinstance(free, str) or not isinstance(free, (list, tuple))
                              or not all(isinstance(n, str) for n in free)):
         raise ParameterError(f"free = {free!r} is not allowed: give a list of parameter names, e.g. ['H', 'h0']")
-    for name, value in (("passes", passes), ("bin", bin)):
-        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1):
-            raise ParameterError(f"{name} = {value!r} is not allowed: it must be a positive integer")
+    for name, value, maximum in (("passes", passes, MAX_PASSES), ("bin", bin, None),
+                                 ("correction_passes", correction_passes, MAX_PASSES)):
+        if value is not None:
+            check_integer(name, value, 1, maximum=maximum)
 
 
 def _correction_mode(correction, spectrum: Spectrum) -> str:
+    if spectrum.known_track is not None and correction is not None and not isinstance(correction, Correction) \
+            and correction == "simulated":
+        raise ParameterError("correction = 'simulated' is not allowed on a known track: its ensembles roll on the rigid "
+                             "rail; use 'none' (the linear chain, for roughness small against d0)")
     if correction is None:
-        return "simulated" if spectrum.simulation else "none"
+        return "simulated" if spectrum.simulation and spectrum.known_track is None else "none"
     if isinstance(correction, Correction):
         return "fixed"
     if correction not in ("simulated", "none"):

@@ -8,6 +8,8 @@ Expected two-sided PSD per rad/s at omega (rad/s), q = omega / v0 (rad/m)::
     C_F(omega) = C_F(q) / v0                                                     (section 6)
     accel:       C_A(omega) = T(omega) C_F(omega),
                  T = w~^4 / ((k_c - m w~^2)^2 + (2 zeta sqrt(k_c m) w~)^2),   k_c = 2 E* a   (section 5.1)
+    on a known track: the blocked force times |1 + k_c (alpha_W + alpha_R)|^-2, the acceleration
+                 omega^4 |alpha_W|^2 times that (:mod:`mdroll.inverse.track_model`)
     observed:    S(omega) = C(omega) + leak / w~^2 + noise,  then the Hann stencil [1/6, 2/3, 1/6]
                  over neighbouring bins when the series was windowed (section 6).
 
@@ -61,6 +63,7 @@ import scipy.special
 
 from ..errors import ParameterError
 from .. import physics
+from .track_model import KnownTrack
 
 #: Every parameter the model can fit: (unit, transform, lower, upper). "log": fitted as its
 #: natural logarithm (positive); "linear": as is.
@@ -191,6 +194,7 @@ class Setting:
     line_length: float | None = None
     bin_width: float | None = None  # d omega of the data's bins (rad/s), for the cutoff fractions
     correction: "Correction | None" = None  # the simulated discrepancy r(q), see :class:`Correction`
+    known_track: "KnownTrack | None" = None  # the track under the contact (:mod:`mdroll.inverse.track_model`)
 
 
 @dataclass(frozen=True)
@@ -230,7 +234,7 @@ def setting_for(spectrum, v0: float, correction: Correction | None = None) -> Se
     step = float(np.diff(omega).min()) if omega.size > 1 else None
     width = float(omega[1] - omega[0]) if spectrum.uniform else step
     return Setting(spectrum.quantity, v0, spectrum.dt, spectrum.window, spectrum.line_length, bin_width=width,
-                   correction=correction)
+                   correction=correction, known_track=spectrum.known_track)
 
 
 def effective_frequency(omega, dt):
@@ -279,7 +283,9 @@ def _unwindowed(omega, p: dict, setting: Setting) -> np.ndarray:
                         * square_line_psd(q[below], lam, p["H"], p["q_min"], p["q_max"]) * (1.0 - weights[below]))
     psd = (weights * linear + quadratic) / v0
     w = effective_frequency(omega, setting.dt)
-    if setting.quantity == "accel":
+    if setting.known_track is not None:
+        psd = psd * setting.known_track.gain(omega, p, setting.quantity, setting.dt)
+    elif setting.quantity == "accel":
         psd = psd * wheel_transfer(omega, physics.contact_stiffness(p["E_star"], p["a"]), p["m"], p["zeta"], setting.dt)
     with np.errstate(divide="ignore"):
         psd = psd + np.where(w > 0, p["leak"] / np.where(w > 0, w, 1.0) ** 2, 0.0)

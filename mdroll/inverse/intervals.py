@@ -26,7 +26,7 @@ import numpy as np
 import scipy.stats
 
 from .forward_model import PARAMETERS, derived, lambda_A
-from .likelihood import Problem, from_fitted
+from .likelihood import Problem, from_fitted, log_jacobian
 
 Z95 = scipy.stats.norm.ppf(0.975)
 
@@ -138,19 +138,11 @@ def derived_quantities(problem: Problem, theta, cov) -> dict:
         return out
 
     centre = values(theta)
-    gradients = {name: np.zeros(len(theta)) for name in centre}
-    for k in range(len(theta)):
-        h = 1e-6 * max(1.0, abs(theta[k]))
-        up, down = theta.copy(), theta.copy()
-        up[k] += h
-        down[k] -= h
-        vu, vd = values(up), values(down)
-        for name in centre:
-            gradients[name][k] = (math.log(vu[name]) - math.log(vd[name])) / (2 * h)
+    gradients = log_jacobian(lambda t: np.array([values(t)[name] for name in centre]), theta, 1e-6)
     out = {}
-    for name, value in centre.items():
+    for gradient, (name, value) in zip(gradients, centre.items()):
         with np.errstate(invalid="ignore"):
-            variance = float(gradients[name] @ cov @ gradients[name])
+            variance = float(gradient @ cov @ gradient)
         sd = math.sqrt(variance) if math.isfinite(variance) and variance >= 0 else math.inf
         ends = [value * math.exp(-Z95 * sd), value * math.exp(Z95 * sd)] if sd < 300.0 else [0.0, math.inf]
         out[name] = {"value": value, "ci95": ends,

@@ -134,14 +134,20 @@ class Problem:
 
     def log_model_jacobian(self, theta) -> np.ndarray:
         """d log S_j / d theta_k (n, p) by central differences."""
-        columns = []
-        for k in range(len(theta)):
-            h = 1e-5 * max(1.0, abs(theta[k]))
-            up, down = theta.copy(), theta.copy()
-            up[k] += h
-            down[k] -= h
-            columns.append((np.log(self.model(self.params(up))) - np.log(self.model(self.params(down)))) / (2 * h))
-        return np.column_stack(columns)
+        return log_jacobian(lambda t: self.model(self.params(t)), theta, 1e-5)
+
+
+def log_jacobian(function, theta, step: float) -> np.ndarray:
+    """d log f_j / d theta_k (n, p) of a positive ``function`` of theta returning n values, by
+    central differences of step ``step * max(1, |theta_k|)``."""
+    columns = []
+    for k in range(len(theta)):
+        h = step * max(1.0, abs(theta[k]))
+        up, down = theta.copy(), theta.copy()
+        up[k] += h
+        down[k] -= h
+        columns.append((np.log(function(up)) - np.log(function(down))) / (2 * h))
+    return np.column_stack(columns)
 
 
 def to_fitted(name: str, value: float) -> float:

@@ -23,11 +23,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ..arguments import check_integer
 from ..ensemble.result import EnsembleResult
+from ..ensemble.vibration import structures_of
 from ..files import atomic_write
 from ..errors import ParameterError
 from ..params import Params
 from ..physics import TWO_PI
+from .track_model import KnownTrack
 
 QUANTITIES = ("accel", "force")
 FREQUENCY_UNITS = ("Hz", "rad/s")
@@ -65,6 +68,8 @@ class Spectrum:
     source : where it came from, for the record.
     unresolved : (n,) bool, True at the bins the record cannot resolve (an mdroll spectrum,
         :mod:`mdroll.ensemble.resolution`), or None when unknown.
+    known_track : the track and wheel under the contact (:class:`~mdroll.inverse.track_model.KnownTrack`:
+        a coupled mdroll run on a track records them; or given), or None: the rigid rail.
     """
 
     omega: np.ndarray
@@ -80,6 +85,7 @@ class Spectrum:
     source: str = ""
     simulation: dict = field(default_factory=dict)
     unresolved: np.ndarray | None = None
+    known_track: KnownTrack | None = None
 
     def __post_init__(self) -> None:
         _choice("quantity", self.quantity, QUANTITIES)
@@ -99,10 +105,8 @@ class Spectrum:
                 raise ParameterError(f"stderr must have the PSD's shape {omega.shape}, got {err.shape}")
             _check_values("stderr", err, omega)
             object.__setattr__(self, "stderr", err)
-        if self.passes is not None and (isinstance(self.passes, bool) or not isinstance(self.passes, (int, np.integer))
-                                        or self.passes < 1):
-            raise ParameterError(f"passes = {self.passes!r} is not allowed: the number of averaged passes must be a "
-                                 "positive integer")
+        if self.passes is not None:
+            check_integer("passes", self.passes, 1, "averaged passes", MAX_PASSES)
         for name in ("v0", "dt", "line_length"):
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value > 0):
@@ -153,6 +157,8 @@ def from_result(result, quantity: str = "accel", window: bool | None = None) -> 
     (a file from before the window was recorded: no window). ``unresolved`` holds the bins the
     record cannot resolve (:mod:`mdroll.ensemble.resolution`).
     """
+    if not isinstance(result, EnsembleResult):
+        raise ParameterError(f"result must be an mdroll.EnsembleResult, got {type(result).__name__}")
     if window is None:
         window = bool(result.window)
     _choice("quantity", quantity, QUANTITIES)
@@ -166,7 +172,8 @@ def from_result(result, quantity: str = "accel", window: bool | None = None) -> 
                     stderr=err[keep] / p.v0 if result.n_real > 1 else None, v0=p.v0, dt=p.dt, window=bool(window),
                     line_length=p.length, truth=_truth(p), source="mdroll ensemble",
                     simulation={"boundary": result.boundary, "mode": result.mode, "algorithm": result.algorithm,
-                                "seed": result.seed, "L": p.L, "dx": p.dx, "q_max": p.q_max, "E": p.E, "nu": p.nu})
+                                "seed": result.seed, "L": p.L, "dx": p.dx, "q_max": p.q_max, "E": p.E, "nu": p.nu},
+                    known_track=KnownTrack(*structures_of(result)) if result.track or result.wheel else None)
 
 
 def _truth(p: Params) -> dict:
@@ -203,13 +210,15 @@ def read_spectrum(path, quantity: str | None = None, window: bool | None = None,
 
 def describable(result, path, window: bool | None) -> bool:
     """The window of the mdroll run at ``path``, after refusing what the forward model cannot
-    describe (naming the file): a coupled run (the model is the decoupled response of section
-    5.1), a roughness other than the power law (eq 33, the model's), a single realization (no
+    describe (naming the file): a coupled run on the rigid rail (the model is the decoupled
+    response of section 5.1; a coupled run on a track is the linear chain on its recorded track,
+    :mod:`mdroll.inverse.track_model`), a roughness other than the power law (eq 33, the model's), a single realization (no
     spread to weigh the bins by), ``window`` that contradicts the run's record (a run that
     recorded no window at all takes the ``window`` given)."""
-    if result.mode != "decoupled":
-        raise ParameterError(f"{path}: a {result.mode} run; the inverse model is the decoupled response (section "
-                             "5.1), so it would fit what it cannot describe: invert a decoupled run")
+    if result.mode != "decoupled" and not (result.track or result.wheel):
+        raise ParameterError(f"{path}: a {result.mode} run on the rigid rail; the inverse model is the decoupled "
+                             "response (section 5.1) or the linear chain on a known track, so it would fit what it "
+                             "cannot describe: invert a decoupled run or a coupled run on a track")
     if result.params.roughness != "powerlaw":
         raise ParameterError(f"{path}: roughness = {result.params.roughness!r}; the inverse model is the power law "
                              "of eq 33: invert a run with roughness = 'powerlaw'")
@@ -259,9 +268,10 @@ def read_table(path, quantity: str = "accel", frequency_unit: str | None = None,
         raise ParameterError(f"{path}: declares quantity {declared['quantity']!r}, but {quantity!r} was asked for")
     quantity = quantity or declared.get("quantity", "accel")
     passes = passes if passes is not None else declared.get("passes")
-    if passes is not None and (isinstance(passes, bool) or not float(passes).is_integer() or passes < 1):
-        raise ParameterError(f"{path}: passes = {passes!r} is not allowed: the number of averaged passes must be a "
-                             "positive integer")
+    if passes is not None and (isinstance(passes, bool) or not float(passes).is_integer()
+                               or not 1 <= passes <= MAX_PASSES):
+        raise ParameterError(f"{path}: passes = {passes!r} is not allowed: the number of averaged passes must be an "
+                             f"integer from 1 to {MAX_PASSES}")
     for name, value, allowed in (("frequency_unit", frequency_unit, FREQUENCY_UNITS), ("sided", sided, SIDES),
                                  ("density", density, DENSITIES)):
         if value is None:
@@ -272,6 +282,9 @@ def read_table(path, quantity: str = "accel", frequency_unit: str | None = None,
                           passes=None if passes is None else int(passes), window=window, source=str(path))
 
 
+#: The most averaged passes K a spectrum may declare: more than any measurement campaign holds, and
+#: what a bootstrap replicate or a correction ensemble simulates at most.
+MAX_PASSES = 100_000
 #: The largest table a fit reads (rows): a spectrum's bins, far more than any measured one has.
 MAX_TABLE_ROWS = 1_000_000
 #: The declared conventions an NPZ table may hold, each a text, and ``passes`` a number.

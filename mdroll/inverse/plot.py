@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.stats
 
+from ..files import save_figure
+
 
 def plot_fit(result, path=None):
     """Two panels: the data and the model (log-log, two-sided PSD per rad/s on omega) and the ratio
@@ -35,6 +37,6 @@ def plot_fit(result, path=None):
     bottom.set_ylabel("data / model")
     fig.tight_layout()
     if path is not None:
-        fig.savefig(path, dpi=120, format="png")
+        save_figure(fig, path, dpi=120)
         plt.close(fig)
     return fig

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..arguments import check_integer
+from ..devices import cpu_cores
 from ..ensemble.spec import EnsembleSpec, run_specs
 from ..experiments import Ladder, provenance
 from ..errors import ParameterError
@@ -27,7 +29,7 @@ from ..physics import TWO_PI, effective_modulus
 from .correction import iterate, simulation_params
 from .fit import fit, refit
 from .forward_model import load_times_radius
-from .observed import from_result, read_table, write_table
+from .observed import MAX_PASSES, from_result, read_table, write_table
 
 #: Parameters compared in a round trip, and their targets at the thesis's scale (K = 300,
 #: L = 5 m): absolute for H, relative for the others.
@@ -78,6 +80,8 @@ SIZES = Ladder(
 
 #: The most bootstrap replicates (each an ensemble and a fit): beyond, the percentiles do not move.
 MAX_BOOTSTRAP = 10_000
+#: The most seeds per true parameter set a round trip runs.
+MAX_REPEATS = 1_000
 
 
 def check_replicates(replicates) -> int:
@@ -229,6 +233,22 @@ def realistic_case(truth: Params, passes: int, seed: int, device: str, folder, n
                                              "noise_floor": floor, "fit_s": time.perf_counter() - t1})
 
 
+def check_study_counts(workers=1, passes=None, correction_passes=None, repeats=None, lengths=None) -> None:
+    """:func:`run_study`'s counts, each bounded (a ParameterError naming it and its range):
+    ``workers`` at most the cores this process may use, ``passes`` (each) and ``correction_passes``
+    at most :data:`~mdroll.inverse.observed.MAX_PASSES`, ``repeats`` at most :data:`MAX_REPEATS`;
+    and ``lengths``, each a line that :class:`~mdroll.params.Params` allows."""
+    check_integer("workers", workers, 1, "processes", cpu_cores())
+    for length in lengths or ():
+        Params(L=length)
+    for k in passes or ():
+        check_integer("passes", k, 1, "passes", MAX_PASSES)
+    if correction_passes is not None:
+        check_integer("correction_passes", correction_passes, 1, "passes", MAX_PASSES)
+    if repeats is not None:
+        check_integer("repeats", repeats, 1, "seeds per truth", MAX_REPEATS)
+
+
 def run_study(size: str = "quick", device: str = "auto", folder=None, progress=lambda text: None, workers: int = 1,
               passes=None, lengths=None, correction: str = "simulated", repeats: int | None = None,
               correction_passes: int | None = None, realistic_only: bool = False) -> dict:
@@ -250,9 +270,8 @@ def run_study(size: str = "quick", device: str = "auto", folder=None, progress=l
     plan = SIZES.rung(size)
     if correction not in ("simulated", "none"):
         raise ParameterError(f"correction = {correction!r} is not allowed: use 'simulated' or 'none'")
+    check_study_counts(workers, passes, correction_passes, repeats, lengths)
     if repeats is not None:
-        if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
-            raise ParameterError(f"repeats = {repeats!r} is not allowed: it must be a positive integer")
         plan = dataclasses.replace(plan, repeats=repeats)
     cells_k = tuple(plan.passes if passes is None else passes)
     cells_l = tuple(plan.lengths if lengths is None else lengths)

@@ -1,13 +1,22 @@
 """The round-trip study's record as Markdown tables (docs/inverse.md's sections) and a figure;
-several records of a study's parts merged into one."""
+several records of a study's parts merged into one; :data:`ROUNDTRIP_RECORD`, the fields they read."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from ..experiments import Figure, markdown_table, write_figure
+from ..experiments.record import FLAGS, INTEGER, NUMBER, NUMBERS, TEXT, OrAbsent, RecordKind, Rows
 from ..errors import ParameterError
 from .roundtrip import TARGETS, format_error, summarize
+
+#: What every row of a record holds.
+_ROW = {"passes": INTEGER, "L": NUMBER, "error": NUMBERS, "covered": FLAGS}
+#: The fields of a round-trip record (``roundtrip.json``) that the tables and the merge read
+#: (``mdroll invert --report`` reads records through :func:`mdroll.experiments.read_record`).
+ROUNDTRIP_RECORD = RecordKind("round-trip record", "mdroll invert --round-trip", {
+    "size": TEXT, "rows": Rows(_ROW), "seconds": NUMBER,
+    "realistic": OrAbsent(Rows({**_ROW, "v0": NUMBER, "seed": INTEGER}))})
 
 
 def format_table(record: dict) -> str:

@@ -34,23 +34,30 @@ def starting_values(problem: Problem, start: dict) -> dict:
     omega, data = problem.omega, problem.data
     v0 = problem.v0
     top = data[-max(1, data.size // 20):]
+    # the shape of the blocked force's spectrum for the power law and the modulation: a known
+    # track's gain (at the starting contact) divided out
+    known_track = problem.setting.known_track
+    shape = data if known_track is None else data / known_track.gain(omega, p, problem.spectrum.quantity,
+                                                                     problem.setting.dt)
 
     # the resonance from the whole spectrum (the default band starts above it)
     spectrum = problem.spectrum
-    resonance = find_resonance(spectrum.omega, spectrum.psd) if spectrum.quantity == "accel" else None
+    # (none on a known track: the contact's resonance is the track's, damped)
+    resonance = find_resonance(spectrum.omega, spectrum.psd) if spectrum.quantity == "accel" and \
+        problem.setting.known_track is None else None
     # power law of the upper two thirds (log) of the band: P ~ omega^-(2H+3)
     upper = omega >= omega[0] * (omega[-1] / omega[0]) ** (1.0 / 3.0)
     upper &= data > 0
-    if resonance is not None:
+    if resonance is not None and known_track is None:
         upper &= omega > 3.0 * resonance
     if upper.sum() >= 8:
-        x, y = np.log(omega[upper]), np.log(data[upper])
+        x, y = np.log(omega[upper]), np.log(shape[upper])
         top_half = x >= 0.5 * (x[0] + x[-1])
         slope = np.polyfit(x[top_half], y[top_half], 1)[0]
         if "H" in free:
             p["H"] = float(np.clip((-slope - 3.0) / 2.0, 0.05, 0.95))
         if "a" in free:
-            p["a"] = modulation_radius(omega[upper] / v0, np.log(data[upper]), default=p["a"])
+            p["a"] = modulation_radius(omega[upper] / v0, np.log(shape[upper]), default=p["a"])
     if "a_jitter" in free:  # the edge displacement of eq 47 at the RMS height
         p["a_jitter"] = float(edge_displacement(p["h0"], p["R"], p["a"]))
     if "noise" in free:

@@ -2,7 +2,9 @@
 
 Roughness level L_r (dB re 1 um) of the run's roughness spectrum against wavelength; force level
 (dB re 1 N, and re 1 uN, the reference of ISO 1683: :data:`UN_OVER_N_DB` more) and acceleration
-level (dB re 1e-6 m/s^2, ISO 1683) of the ensemble against frequency (Hz),
+level (dB re 1e-6 m/s^2, ISO 1683) of the ensemble against frequency (Hz), and for a coupled run
+on a track the wheel's and the rail's velocity levels at the contact (dB re 1 nm/s, ISO 1683;
+:mod:`mdroll.ensemble.vibration`),
 band-integrated by the rule of :mod:`mdroll.roughness.bands` (sum over the bins inside a band of
 the one-sided PSD times the bin width). Written into summary.json (``"bands"``), bands.csv and
 bands.png (both axes: wavelength and frequency f = v0 / lambda).
@@ -17,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import roughness
+from ..ensemble.vibration import VIBRATION
 from ..experiments import Figure, write_figure
 from ..files import atomic_write
 from ..params import Params
@@ -48,6 +51,8 @@ def band_spectra(result, spectrum=None) -> dict:
     def clean(values):
         return [None if not np.isfinite(v) else float(v) for v in values]
 
+    vibration = {f"L_v_{name}_dB": clean(bands.frequency_levels(result.q, psd, dq, n_freq, p.v0, "velocity")[0])
+                 for name, (psd, _) in result.vibration().items()}
     return {
         "rule": "band mean square = sum over grid bins q_lo <= q_k < q_hi of 2 C(q_k) dq (C two-sided); "
                 "IEC 61260 base-10 bands, centre 10^(n/10) mm or Hz, edges centre 10^(-+1/20)",
@@ -59,12 +64,16 @@ def band_spectra(result, spectrum=None) -> dict:
                                "frequency_nominal_Hz": bands.nominal(n_freq).tolist(),
                                "frequency_Hz": f.tolist(), "wavelength_m": (p.v0 / f).tolist(), "L_F_dB": clean(L_F),
                                "L_F_uN_dB": clean(L_F + UN_OVER_N_DB), "L_a_dB": clean(L_a), "bins": count_f.tolist()},
+        **({"vibration": {"reference": "1 nm/s (ISO 1683)", "frequency_nominal_Hz": bands.nominal(n_freq).tolist(),
+                          "frequency_Hz": f.tolist(), "wavelength_m": (p.v0 / f).tolist(), **vibration,
+                          "bins": count_f.tolist()}} if vibration else {}),
     }
 
 
 def bands_csv(spectra: dict) -> str:
-    """One CSV of both tables: quantity, nominal band, centre, unit, level (dB), reference,
-    wavelength (m), frequency (Hz), bins."""
+    """One CSV of the tables: quantity (roughness, force, acceleration and, on a track,
+    wheel_velocity and rail_velocity), nominal band, unit, level (dB), reference, wavelength (m),
+    frequency (Hz), bins."""
     out = io.StringIO()
     writer = csv.writer(out)
     writer.writerow(["quantity", "band_nominal", "band_unit", "level_dB", "reference", "wavelength_m", "frequency_Hz",
@@ -77,16 +86,22 @@ def bands_csv(spectra: dict) -> str:
                            ("acceleration", "L_a_dB", "1e-6 m/s^2")):
         for row in zip(fa["frequency_nominal_Hz"], fa[key], fa["wavelength_m"], fa["frequency_Hz"], fa["bins"]):
             writer.writerow([name, row[0], "Hz", row[1], ref, row[2], row[3], row[4]])
+    vib = spectra.get("vibration", {})
+    for name in VIBRATION:
+        for row in zip(vib.get("frequency_nominal_Hz", ()), vib.get(f"L_v_{name}_dB", ()), vib.get("wavelength_m", ()),
+                       vib.get("frequency_Hz", ()), vib.get("bins", ())):
+            writer.writerow([name, row[0], "Hz", row[1], "1 nm/s", row[2], row[3], row[4]])
     return out.getvalue()
 
 
 def band_figure(spectra: dict) -> Figure:
     """bands.png: L_r against wavelength (frequency at v0 on top), L_F and L_a against frequency
-    (wavelength at v0 on top)."""
+    (wavelength at v0 on top); on a track also the wheel's and the rail's velocity levels."""
     v0 = spectra["v0"]
+    vib = spectra.get("vibration")
 
     def draw(fig):
-        ax_r, ax_f = fig.subplots(2, 1)
+        ax_r, ax_f, *ax_v = fig.subplots(3 if vib else 2, 1)
         r = spectra["roughness"]
         lam_mm = np.array(r["wavelength_m"]) * 1e3
         ax_r.semilogx(lam_mm, np.array(r["L_r_dB"], dtype=float), "o-")
@@ -114,9 +129,19 @@ def band_figure(spectra: dict) -> Figure:
         top = ax_f.secondary_xaxis("top", functions=(lambda f: v0 / np.maximum(f, 1e-12) * 1e3,
                                                       lambda x: v0 / (np.maximum(x, 1e-12) * 1e-3)))
         top.set_xlabel(f"wavelength at v0 = {v0:g} m/s (mm)")
+        for ax in ax_v:
+            for name in VIBRATION:
+                if f"L_v_{name}_dB" in vib:
+                    ax.semilogx(vib["frequency_Hz"], np.array(vib[f"L_v_{name}_dB"], dtype=float), "o-",
+                                label=name.replace("_", " ") + " at the contact")
+            ax.set_xlabel("frequency (Hz)")
+            ax.set_ylabel("$L_v$ (dB re 1 nm/s)")
+            ax.set_title("vibration velocity levels, 1/3-octave bands (ISO 1683)", fontsize=10)
+            ax.legend(fontsize=8)
+            ax.grid(True, which="both", alpha=0.3)
 
-    return Figure("bands", "1/3-octave band levels of the roughness, force and acceleration", draw, size=(8, 8),
-                  dpi=110)
+    return Figure("bands", "1/3-octave band levels of the roughness, force and acceleration", draw,
+                  size=(8, 11 if vib else 8), dpi=110)
 
 
 def write_band_outputs(result, out, summary: dict | None = None) -> dict:

@@ -24,6 +24,7 @@ from ..experiments import Ladder, Registry, provenance
 from ..forces.force import contact_force
 from ..params import Params
 from ..roughness import bands, filters, measured, tables
+from . import track_study
 
 #: Standard errors added to each model allowance (as mdroll.validation.checks).
 Z_SIGMA = 3.0
@@ -36,22 +37,24 @@ DECOUPLED_DB = 1.0
 @dataclass(frozen=True)
 class RailwaySize:
     """The studies' parameters on one rung of the ladder: a base for the line and force checks, one for eq 63 and one for the
-    dynamics (long lines for the ISO 3095 spectrum's long waves)."""
+    dynamics (long lines for the ISO 3095 spectrum's long waves), and the track study's rung
+    (:mod:`mdroll.railway.track_study`)."""
 
     base: Params
     eq63: Params
     dynamics: Params
     n_real: int
     n_real_eq63: int
+    track: track_study.TrackSize
     speeds: tuple = (10.0, 20.0, 30.0, 40.0)
     profile_length: float = 20.0
 
 
 SIZES = Ladder(
     quick=RailwaySize(base=Params(L=0.5, dx=1e-5), eq63=Params(L=1.0, dx=1e-5), dynamics=Params(L=2.0, dx=5e-5),
-                      n_real=8, n_real_eq63=16, profile_length=8.0),
+                      n_real=8, n_real_eq63=16, track=track_study.SIZES["quick"], profile_length=8.0),
     full=RailwaySize(base=Params(L=5.0, dx=5e-6), eq63=Params(L=5.0, dx=5e-6), dynamics=Params(L=10.0, dx=5e-5),
-                     n_real=32, n_real_eq63=300, profile_length=100.0),
+                     n_real=32, n_real_eq63=300, track=track_study.SIZES["full"], profile_length=100.0),
 )
 
 
@@ -327,6 +330,7 @@ RAILWAY_STUDIES = Registry("railway study", [
     ("eq63", lambda s, seed, device: eq63_study(s.eq63, seed, s.n_real_eq63, device)),
     ("dynamics", lambda s, seed, device: dynamics_study(s.dynamics, s.speeds, seed, max(2, s.n_real // 2), device)),
     ("contact_filter", lambda s, seed, device: contact_filter_study(s.dynamics, seed, max(2, s.n_real // 2), device)),
+    ("track", lambda s, seed, device: track_study.track_study(s.track, seed, device)),
 ])
 
 

@@ -15,6 +15,7 @@ import numpy as np
 from ..experiments import Figure, write_figure, write_json
 from ..files import atomic_write
 from ..roughness import bands, filters, measured
+from . import track_study
 from .studies import run_all
 
 
@@ -28,6 +29,8 @@ def _passes(record: dict) -> list[tuple[str, bool]]:
     out += [(name, record[key]["passed"]) for key, name in (("round_trip", "dB round trip"),
                                                              ("measured_profile", "measured profile")) if key in record]
     out += [(f"eq 39 high band {r['model']}", r["passed"]) for r in record.get("high_band", [])]
+    if "track" in record:
+        out.append(("small roughness on a track = linear chain (same realizations)", record["track"]["passed"]))
     return out
 
 
@@ -42,6 +45,10 @@ def check(size: str, seed: int, device: str, out: Path, only=None) -> bool:
         write_figure(contact_filter_figure(record["contact_filter"]["cnossos"], record["contact_filter"]),
                      out / "contact_filter.png")
         written.append("contact_filter.png")
+    if "track" in record:
+        for figure in track_study.figures(record["track"]):
+            write_figure(figure, out / f"{figure.name}.png")
+            written.append(f"{figure.name}.png")
     results = _passes(record)
     print("  result  check (roughness model)")
     for name, passed in results:
@@ -57,6 +64,11 @@ def check(size: str, seed: int, device: str, out: Path, only=None) -> bool:
         print(f"  {'PASS' if case['decoupled_valid'] else 'FAIL':<6}  decoupled valid (model iso3095 "
               f"{case['offset_dB']:+g} dB, v0 {case['v0']:g} m/s): contact lost {case['contact_lost_fraction']:.3g}, "
               f"max |L_a coupled - decoupled| {case['max_abs_difference_dB']:.2f} dB at {case['at_Hz']:g} Hz")
+    for case in record.get("track", {}).get("cases", []):
+        worst = max(abs(d) for d in case["force"]["difference_dB"])
+        print(f"  {'REPORT':<6}  track {case['track']}, ISO 3095 {case['offset_dB']:+g} dB: contact lost "
+              f"{case['contact_lost_fraction']:.3g}, max |L_F - linear chain| {worst:.2f} dB, dips "
+              + " ".join(f"{d['over_linear_dB']:+.1f}" for d in case["dips"]) + " dB over the chain")
     print(f"wrote {out}/: {' '.join(written)}")
     return all(passed for _, passed in results)
 

@@ -15,7 +15,8 @@ A band with no grid wavenumber has no level (NaN). Levels:
 
 * roughness ``L_r = 10 lg(ms / r0^2)``, r0 = 1 um (dB re 1 um), against wavelength;
 * force ``L_F = 10 lg(ms / F0^2)``, F0 = 1 N (dB re 1 N), against frequency;
-* acceleration ``L_a = 10 lg(ms / a0^2)``, a0 = 1e-6 m/s^2 (dB re 1e-6 m/s^2), against frequency.
+* acceleration ``L_a = 10 lg(ms / a0^2)``, a0 = 1e-6 m/s^2 (dB re 1e-6 m/s^2), against frequency;
+* velocity ``L_v = 10 lg(ms / v0^2)``, v0 = 1 nm/s (dB re 1 nm/s, ISO 1683), against frequency.
 """
 
 from __future__ import annotations
@@ -26,8 +27,8 @@ import numpy as np
 
 from .. import physics
 
-#: References of the levels: roughness 1 um (m), force 1 N, acceleration 1e-6 m/s^2.
-REFERENCES = {"roughness": 1e-6, "force": 1.0, "acceleration": 1e-6}
+#: References of the levels: roughness 1 um (m), force 1 N, acceleration 1e-6 m/s^2, velocity 1 nm/s.
+REFERENCES = {"roughness": 1e-6, "force": 1.0, "acceleration": 1e-6, "velocity": 1e-9}
 #: Half a 1/3-octave band (base 10) as a factor: the edges are centre * 10^(-+1/20).
 HALF_BAND = 10.0 ** (1.0 / 20.0)
 _R10 = (1.0, 1.25, 1.6, 2.0, 2.5, 3.15, 4.0, 5.0, 6.3, 8.0)
@@ -110,7 +111,8 @@ def roughness_levels(q, psd, dq: float, n) -> tuple[np.ndarray, np.ndarray]:
 
 
 def frequency_levels(q, psd, dq: float, n, v0: float, quantity: str) -> tuple[np.ndarray, np.ndarray]:
-    """Levels of ``quantity`` ("force": dB re 1 N; "acceleration": dB re 1e-6 m/s^2) in frequency
-    bands n (Hz) at speed v0 from its PSD per rad/m on the grid q; and the bin counts."""
+    """Levels of ``quantity`` ("force": dB re 1 N; "acceleration": dB re 1e-6 m/s^2; "velocity": dB
+    re 1 nm/s) in frequency bands n (Hz) at speed v0 from its PSD per rad/m on the grid q; and the
+    bin counts."""
     ms, counts = band_mean_squares(q, psd, dq, *frequency_band_edges_q(n, v0))
     return level_db(ms, REFERENCES[quantity]), counts

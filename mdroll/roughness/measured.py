@@ -47,7 +47,7 @@ def load_profile(path, dx: float | None = None) -> Profile:
     h (m) with ``dx`` (m) given. The least-squares line is removed (scipy.signal.detrend)."""
     file = Path(path)
     if not file.is_file():
-        raise ParameterError(f"profile = {str(path)!r}: no such file")
+        raise ParameterError(f"profile = {str(path)!r}: " + ("a directory, not a file" if file.is_dir() else "no such file"))
     if dx is None:
         x, h = read_two_columns(file, "profile")
         steps = np.diff(x)
@@ -81,8 +81,12 @@ def make_profile(h, dx: float, source: str = "") -> Profile:
         raise ParameterError(f"profile {source!r}: heights must be a finite 1D series of at least 16 points")
     if h.size > MAX_PROFILE_POINTS:
         raise ParameterError(f"profile {source!r}: {h.size} points, more than {MAX_PROFILE_POINTS}; split it")
+    scale = float(np.max(np.abs(h)))
     h = signal.detrend(h, type="linear")
     rms = float(np.sqrt(np.mean(h * h)))
+    if rms <= 1e-12 * scale or rms == 0.0:  # rounding's residue of a line
+        raise ParameterError(f"profile {source!r}: every height lies on one straight line (RMS 0 after removing "
+                             "the trend): no roughness to estimate")
     if rms > MAX_PROFILE_RMS:
         raise ParameterError(f"profile {source!r}: RMS height {rms:.4g} m, above the {MAX_PROFILE_RMS:g} m of any rail "
                              "or wheel roughness: heights must be in metres (micrometres x 1e-6)")

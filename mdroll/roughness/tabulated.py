@@ -140,7 +140,7 @@ def read_numbers(file: Path, name: str) -> np.ndarray:
     except UnicodeDecodeError:
         raise ParameterError(f"{name} = {str(file)!r} is not a text table (not UTF-8): give a CSV or an NPY "
                              "file") from None
-    rows = []
+    rows, header = [], False
     for number, line in enumerate(text.splitlines(), start=1):
         line = line.strip()
         if not line or line.startswith("#"):
@@ -149,9 +149,10 @@ def read_numbers(file: Path, name: str) -> np.ndarray:
         try:
             row = [float(f) for f in fields]
         except ValueError:
-            if rows:
+            if rows or header:
                 raise ParameterError(f"{name} = {str(file)!r}, line {number}: {line[:40]!r} is not a row of "
                                      "numbers") from None
+            header = True
             continue  # the header
         if rows and len(row) != len(rows[0]):
             raise ParameterError(f"{name} = {str(file)!r}, line {number}: {len(row)} columns, the first row has "

@@ -19,12 +19,15 @@ from ..devices import resolve_device
 from ..experiments import Ladder, Registry, provenance
 from ..files import jsonable
 from . import coupling, high_band, low_band, regions, taper
+from .mdr3d import mdr_vs_3d
 from .core import AGREES, DISAGREES, REPORTED, UNRESOLVED, Claim, Runner
 
 #: Thesis-scale line: 2^20 springs of 5 um (the thesis's 5 m, rounded up to a fast FFT length).
 THESIS = {"L": 5.24288, "dx": 5e-6}
 CPU_QUICK = {"L": 1.0, "dx": 20e-6}
 CPU_TEST = {"L": 0.5, "dx": 20e-6}
+#: The MDR-against-3-D sweep's defaults: every surface and indenter at H 0.7 (rungs widen it).
+MDR3D_SWEEP = {"surfaces": ("a", "b", "c"), "indenters": ("sphere", "ellipse"), "hursts": (0.7,)}
 
 
 @dataclass(frozen=True)
@@ -83,6 +86,14 @@ STUDIES = Registry("study", ((s.name, s) for s in [
           Ladder(test={**CPU_TEST, "realizations": 16, "hursts": (0.3, 0.55, 0.8), "q_min_factors": (0.5, 1.0, 2.0),
                        "heights": (0.5e-6, 1e-6), "length_factors": (2.0,)},
                  quick={**CPU_QUICK, "realizations": 64}, full={**THESIS, "realizations": 100})),
+    Study("mdr-vs-3d", mdr_vs_3d, "sec 7.1", "eq 39-40, 48",
+          "the MDR's force spectrum against the 3-D boundary-element reference, and the contact filters",
+          Ladder(test={**MDR3D_SWEEP, "surfaces": ("a", "b"), "indenters": ("sphere",), "ratios": (0.01,),
+                       "qmin_as": (0.5,), "realizations": 2, "cells": 21, "positions": 48},
+                 quick={**MDR3D_SWEEP, "ratios": (0.01, 0.1), "qmin_as": (0.5, 5.0), "realizations": 3, "cells": 23,
+                        "positions": 128},
+                 full={**MDR3D_SWEEP, "hursts": (0.3, 0.5, 0.7, 0.9), "ratios": (0.003, 0.01, 0.03, 0.1),
+                       "qmin_as": (0.5, 1.58, 5.0), "realizations": 8, "cells": 47, "positions": 768})),
     Study("rms-force", low_band.rms_force, "eq 59-61", "eq 59-61",
           "the RMS force in the plateau band of the thesis's example",
           Ladder(test={**CPU_TEST, "realizations": 32}, quick={**CPU_QUICK, "realizations": 192},

@@ -8,11 +8,23 @@ import json
 import textwrap
 from pathlib import Path
 
-from ..experiments import markdown_table, text_table, write_figures, write_json
+from ..experiments import markdown_table, read_record, text_table, write_figures, write_json
+from ..experiments.record import INTEGER, NUMBER, OPTIONAL_NUMBER, OPTIONAL_TEXT, TABLE, TEXT, OrAbsent, \
+    RecordKind, Rows, Table
 from ..files import atomic_write
 from . import STUDIES
 from .core import AGREES, DISAGREES, REPORTED, UNRESOLVED
-from .records import read_record
+
+#: The fields of a study record (``<study>/<study>.json``) that the table and the page read.
+STUDY_RECORD = RecordKind("study record", "mdroll study", {
+    "study": TEXT, "title": TEXT, "thesis_figures": TEXT, "equations": TEXT, "size": TEXT, "device": TEXT,
+    "resolution": TEXT, "elapsed_s": NUMBER, "environment": TABLE,
+    "verdicts": Table({verdict: INTEGER for verdict in (AGREES, DISAGREES, UNRESOLVED, REPORTED)}),
+    "claims": Rows({"name": TEXT, "thesis": TEXT, "unit": TEXT, "source": TEXT, "verdict": TEXT, "note": TEXT,
+                    "measured": OPTIONAL_NUMBER, "expected": OPTIONAL_NUMBER, "stderr": NUMBER,
+                    "allowance": OPTIONAL_NUMBER, "known": OrAbsent(OPTIONAL_TEXT)}),
+    "figures": Rows({"file": TEXT, "caption": TEXT}),
+    "ensembles": Rows({"spec": Table({"realizations": INTEGER, "algorithm": TEXT, "mode": TEXT, "boundary": TEXT})})})
 
 
 def _number(value, unit: str = "") -> str:
@@ -70,7 +82,7 @@ def load_records(folder) -> list[dict]:
     for name in STUDIES:
         path = folder / name / f"{name}.json"
         if path.is_file():
-            records.append(read_record(path, (AGREES, DISAGREES, UNRESOLVED, REPORTED)))
+            records.append(read_record(path, STUDY_RECORD))
     return records
 
 

@@ -14,13 +14,11 @@ Units are SI; every stiffness and mass of the support is that of one support (on
 
 from __future__ import annotations
 
-import dataclasses
-import math
-from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
+from mdroll.checks import check_nonnegative, check_number, check_positive
 from mdroll.errors import ParameterError
-from mdroll.params import setting_number, settings_pairs
+from mdroll.settings import Presettable
 
 #: Support models: ``rigid`` (an immovable rail, zero receptance), ``continuous`` (the supports
 #: smeared along the rail, per length k / sleeper_spacing), ``discrete`` (one support per sleeper).
@@ -62,8 +60,11 @@ SOURCES = {
 
 
 @dataclass(frozen=True)
-class Track:
+class Track(Presettable):
     """A rail on rail pads, sleepers and ballast (SI units; pad, sleeper and ballast per support).
+
+    Presets (:data:`PRESETS`, their sources in :data:`SOURCES`), copies and ``track.KEY=VALUE``
+    settings: :class:`mdroll.settings.Presettable`.
 
     Attributes
     ----------
@@ -103,53 +104,14 @@ class Track:
     ballast_loss: float = 1.0
     sleeper_spacing: float = 0.6
 
+    PREFIX, PRESETS, TEXT_FIELDS = "track", PRESETS, ("support",)
+
     def __post_init__(self) -> None:
         if self.support not in SUPPORTS:
             raise ParameterError(f"track.support = {self.support!r} is not allowed: choose one of {list(SUPPORTS)}")
         for name in ("rail_EI", "rail_mass", "pad_stiffness", "ballast_stiffness", "sleeper_spacing"):
-            _check(name, getattr(self, name), "positive and finite", lambda v: math.isfinite(v) and v > 0)
-        _check("rail_shear_stiffness", self.rail_shear_stiffness, "positive (inf: Euler-Bernoulli)",
-               lambda v: v > 0 and not math.isnan(v))
+            check_positive(f"track.{name}", getattr(self, name))
+        check_number("track.rail_shear_stiffness", self.rail_shear_stiffness, "positive (inf: Euler-Bernoulli)",
+                     lambda v: v > 0)
         for name in ("rail_rotary_inertia", "rail_loss", "pad_loss", "sleeper_mass", "ballast_loss"):
-            _check(name, getattr(self, name), "zero or positive and finite", lambda v: math.isfinite(v) and v >= 0)
-
-    @classmethod
-    def preset(cls, name: str) -> "Track":
-        """The preset ``name`` of :data:`PRESETS` (sources in :data:`SOURCES`)."""
-        if not isinstance(name, str) or name not in PRESETS:
-            raise ParameterError(f"track = {name!r} is not allowed: choose one of {list(PRESETS)}")
-        return cls(**PRESETS[name])
-
-    def with_values(self, **values) -> "Track":
-        """A copy with some fields changed (validated again); unknown names raise ParameterError."""
-        names = [f.name for f in fields(self)]
-        unknown = sorted(set(values) - set(names))
-        if unknown:
-            raise ParameterError(f"track.{unknown[0]} is not allowed: the track keys are {names}")
-        return dataclasses.replace(self, **values)
-
-    @classmethod
-    def from_settings(cls, settings: Mapping[str, str] | Iterable) -> "Track":
-        """A track from ``track=PRESET`` and ``track.KEY=VALUE`` settings, given as a mapping
-        ``{"track.pad_loss": "0.3"}``, as ``"KEY=VALUE"`` strings (a command line's) or as
-        ``(KEY, VALUE)`` pairs (a TOML table's, values typed). The preset applies first (default:
-        the class defaults), then the keys in order."""
-        pairs = settings_pairs(settings, "track")
-        track = cls()
-        for key, value in pairs:
-            if key == "track":
-                track = cls.preset(value)
-        for key, value in pairs:
-            if key != "track":
-                name = key.removeprefix("track.")
-                track = track.with_values(**{name: value if name == "support" else setting_number(key, value)})
-        return track
-
-    def as_dict(self) -> dict:
-        """The fields as a plain dict."""
-        return {f.name: getattr(self, f.name) for f in fields(self)}
-
-
-def _check(name: str, value, allowed: str, test) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not test(float(value)):
-        raise ParameterError(f"track.{name} = {value!r} is not allowed: it must be a real number, {allowed}")
+            check_nonnegative(f"track.{name}", getattr(self, name))

@@ -136,11 +136,16 @@ def call_prediction(name: str, prediction, x: np.ndarray, params: Params):
     """``prediction(x, params)`` as float64 (a scalar, or an array shaped as ``x``), or a
     :class:`PredictionError` naming the check when it raises or is not finite."""
     try:
-        value = np.asarray(prediction(x, params), dtype=np.float64)
+        returned = prediction(x, params)
     except SystemExit as exc:  # sys.exit in a prediction must not end mdroll as a success
         raise PredictionError(f"check {name!r}: its prediction called sys.exit({exc.code!r})") from None
     except Exception as exc:  # a user's prediction may fail in any way: bad input, named
         raise PredictionError(f"check {name!r}: its prediction raised {type(exc).__name__}: {exc}") from None
+    try:
+        value = np.asarray(returned, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise PredictionError(f"check {name!r}: its prediction returned {str(returned)[:40]!r} "
+                              f"({type(returned).__name__}), not a number or an array of numbers") from None
     if value.ndim and value.shape != x.shape:
         raise PredictionError(f"check {name!r}: its prediction returned shape {value.shape}, "
                               f"expected a scalar or {x.shape}")

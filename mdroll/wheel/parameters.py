@@ -14,15 +14,14 @@ The rigid wheel is ``alpha_W = -1 / (m omega^2)``: the mass of physics.md sectio
 
 from __future__ import annotations
 
-import dataclasses
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from mdroll.checks import check_nonnegative, check_positive
 from mdroll.errors import ParameterError
-from mdroll.params import setting_number, settings_pairs
 from mdroll.physics import TWO_PI
+from mdroll.settings import Presettable
 from mdroll.statespace import ModalForm
 
 KINDS = ("rigid", "modal")
@@ -54,8 +53,11 @@ SOURCES = {
 
 
 @dataclass(frozen=True)
-class Wheel:
+class Wheel(Presettable):
     """A wheel's radial receptance model (SI units).
+
+    :class:`mdroll.settings.Presettable` gives its presets (:data:`PRESETS`), changed copies and
+    ``wheel=PRESET`` / ``wheel.KEY=VALUE`` settings.
 
     Attributes
     ----------
@@ -75,59 +77,20 @@ class Wheel:
     suspension_loss: float = 0.1
     modes: tuple = field(default=())
 
+    PREFIX, PRESETS, TEXT_FIELDS = "wheel", PRESETS, ("kind",)
+
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
             raise ParameterError(f"wheel.kind = {self.kind!r} is not allowed: choose one of {list(KINDS)}")
         for name in ("mass", "suspension_stiffness"):
-            value = getattr(self, name)
-            real = isinstance(value, (int, float)) and not isinstance(value, bool)
-            if not (real and math.isfinite(value) and value > 0):
-                raise ParameterError(f"wheel.{name} = {value!r} is not allowed: it must be positive and finite")
-        if not (isinstance(self.suspension_loss, (int, float)) and math.isfinite(self.suspension_loss)
-                and self.suspension_loss >= 0):
-            raise ParameterError(f"wheel.suspension_loss = {self.suspension_loss!r} is not allowed: "
-                                 "it must be zero or positive and finite")
+            check_positive(f"wheel.{name}", getattr(self, name))
+        check_nonnegative("wheel.suspension_loss", self.suspension_loss)
         modes = np.asarray(self.modes, dtype=np.float64).reshape(-1, 3) if len(self.modes) else np.zeros((0, 3))
         if not (np.all(np.isfinite(modes)) and np.all(modes[:, :2] > 0) and np.all(modes[:, 2] >= 0)):
             raise ParameterError(f"wheel.modes = {self.modes!r} is not allowed: rows (f_n > 0 Hz, m_n > 0 kg, "
                                  "zeta_n >= 0), all finite")
         if self.kind == "rigid" and len(modes):
             raise ParameterError("wheel.modes is not allowed with wheel.kind = 'rigid': use kind 'modal'")
-
-    @classmethod
-    def preset(cls, name: str) -> "Wheel":
-        """The preset ``name`` of :data:`PRESETS` (sources in :data:`SOURCES`)."""
-        if not isinstance(name, str) or name not in PRESETS:
-            raise ParameterError(f"wheel = {name!r} is not allowed: choose one of {list(PRESETS)}")
-        return cls(**PRESETS[name])
-
-    def with_values(self, **values) -> "Wheel":
-        """A copy with some fields changed (validated again)."""
-        names = [f.name for f in dataclasses.fields(self)]
-        unknown = sorted(set(values) - set(names))
-        if unknown:
-            raise ParameterError(f"wheel.{unknown[0]} is not allowed: the wheel keys are {names}")
-        return dataclasses.replace(self, **values)
-
-    @classmethod
-    def from_settings(cls, settings) -> "Wheel":
-        """A wheel from ``wheel=PRESET`` and ``wheel.KEY=VALUE`` settings, as
-        :meth:`mdroll.track.Track.from_settings` takes them: the preset first (default: the
-        class defaults), then the keys in order; ``kind`` is a name, the others numbers
-        (``modes`` only through the class or a preset)."""
-        pairs = settings_pairs(settings, "wheel")
-        wheel = cls()
-        for key, value in pairs:
-            if key == "wheel":
-                wheel = cls.preset(value)
-        for key, value in pairs:
-            if key != "wheel":
-                name = key.removeprefix("wheel.")
-                if name == "modes":
-                    raise ParameterError(f"{key} is not allowed as a setting: choose a wheel preset or build "
-                                         "mdroll.wheel.Wheel(modes=...)")
-                wheel = wheel.with_values(**{name: value if name == "kind" else setting_number(key, value)})
-        return wheel
 
     def receptance(self, f):
         """Radial point receptance alpha_W (m/N, complex) at frequencies ``f`` (Hz, > 0): the
