@@ -98,7 +98,8 @@ def worker_batches(specs: Sequence[EnsembleSpec], device: str, options: dict, ch
     if options.get("batch") is not None:
         return [options["batch"]] * len(specs)
     device = resolve_device(device)
-    return [default_batch(s.params, device, options.get("memory_limit"), wanted=s.realizations) for s in specs]
+    return [default_batch(s.params, device, options.get("memory_limit"), wanted=s.realizations, mode=s.mode)
+            for s in specs]
 
 
 def run_unit(spec: EnsembleSpec, device: str, options: dict, checkpoint: str | None = None,

@@ -70,3 +70,25 @@ def test_layout_counts_are_bounded():
     assert coupled_layout(5, "cpu", 4) == (5, 128)
     with pytest.raises(ParameterError, match=r"^warps = 33: allowed are 1 to 32 realizations a block$"):
         coupled_layout(5, "cpu", 33)
+
+
+def test_spectra_in_parts_are_the_whole_batchs(device, monkeypatch):
+    # the coupled mode's spectra go SPECTRA_ROWS rows at a time, their moments merged: 7 rows in
+    # parts of 3, 3 and 1 against one part of all 7
+    import warp as wp
+
+    from mdroll.ensemble import psd
+
+    p = Params(L=0.05)
+    rng = np.random.default_rng(4)
+    force, accel = (wp.array(rng.normal(size=(7, 256)), dtype=wp.float64, device=device) for _ in range(2))
+    sums = psd.series_sums(force, p, device, False)
+
+    def moments(rows):
+        monkeypatch.setattr(psd, "SPECTRA_ROWS", rows)
+        return [to_numpy(m).copy() for m in psd.psd_moments_of_batch(force, accel, sums, p, device, True)]
+
+    whole, parts = moments(7), moments(3)
+    assert whole[0].shape == (129, 2) and np.all(whole[0][1:, 1] > 0)
+    for a, b in zip(parts, whole):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-14 * np.abs(b).max())

@@ -89,11 +89,11 @@ def execute(args) -> int:
     memory = None
     if args.memory_limit is not None:
         memory = _positive_gib(args.memory_limit)
-        need = 2 * realization_bytes(params)  # a batch gets half the limit
+        need = 2 * realization_bytes(params, settings["mode"])  # a batch gets half the limit
         if memory < need:
             raise UsageError(f"--memory-limit {args.memory_limit:g} GiB is too small: one realization of "
                              f"{params.n_points} springs needs {need / 2**30:.3g} GiB (a batch gets half the limit)")
-    check_run_fits(params, device, memory)
+    check_run_fits(params, device, memory, settings["mode"])
     track, wheel = build_structures(args)
     if not args.resume:
         out = output_dir(args, clear=RUN_OUTPUTS + (CHECKPOINT,))

@@ -8,18 +8,23 @@ from ..devices import is_cuda, warp
 from ..errors import ParameterError
 from ..params import Params
 
-#: Bytes of device memory per spring of one realization in a batch (lines, half spectrum,
-#: prefix sums, tree, force, acceleration and FFT work space), for sizing batches.
+#: Bytes of device memory per spring of one realization in a batch of the decoupled mode (lines,
+#: half spectrum, prefix sums, tree, force, acceleration and FFT work space), for sizing batches.
 BYTES_PER_POINT = 96
+#: The same in the coupled mode, whose spectra are transformed a few rows at a time
+#: (:data:`~mdroll.ensemble.psd.SPECTRA_ROWS`): the line, its prefix sums, the force and the
+#: acceleration (8 B each), the lines' cached FFT work space (up to 8 B) and the tree's nodes.
+COUPLED_BYTES_PER_POINT = 48
 #: Host bytes a run keeps per realization index (the int64 array, the Python list of the result
 #: and its JSON text in the checkpoint and spectra file).
 BYTES_PER_INDEX = 64
 
 
-def realization_bytes(params: Params) -> int:
-    """Device (or host, on the CPU) bytes one realization of a batch needs: ``BYTES_PER_POINT``
-    a spring; a batch is sized to half the free memory."""
-    return BYTES_PER_POINT * params.n_points
+def realization_bytes(params: Params, mode: str = "decoupled") -> int:
+    """Device (or host, on the CPU) bytes one realization of a batch of ``mode`` needs:
+    :data:`BYTES_PER_POINT` a spring, :data:`COUPLED_BYTES_PER_POINT` in the coupled mode; a
+    batch is sized to half the free memory."""
+    return (COUPLED_BYTES_PER_POINT if mode == "coupled" else BYTES_PER_POINT) * params.n_points
 
 
 def free_bytes(device: str) -> int:
@@ -36,10 +41,10 @@ def check_count_fits(count: int) -> None:
                              f"needs {need / 2**30:.3g} GiB of host memory, {have / 2**30:.3g} GiB are available")
 
 
-def check_run_fits(params: Params, device: str, memory_limit: int | None = None) -> None:
-    """Refuse, before any work, a line too long for one realization to fit in half the free
-    memory of ``device`` (or of ``memory_limit`` bytes), naming L and dx."""
-    need = realization_bytes(params)
+def check_run_fits(params: Params, device: str, memory_limit: int | None = None, mode: str = "decoupled") -> None:
+    """Refuse, before any work, a line too long for one realization of ``mode`` to fit in half
+    the free memory of ``device`` (or of ``memory_limit`` bytes), naming L and dx."""
+    need = realization_bytes(params, mode)
     have = free_bytes(device)
     if is_cuda(device) and need > 0.5 * have:  # the pools' unused memory counts as used: hand it back first
         release_pools(device)
@@ -50,15 +55,15 @@ def check_run_fits(params: Params, device: str, memory_limit: int | None = None)
     if need > 0.5 * have:
         raise ParameterError(
             f"L = {params.L!r} m with dx = {params.dx!r} m is too large for {device}: one realization of "
-            f"{params.n_points} springs needs {need / 2**30:.3g} GiB ({BYTES_PER_POINT} B a spring), more than half "
+            f"{params.n_points} springs needs {need / 2**30:.3g} GiB ({need // params.n_points} B a spring), more than half "
             f"{where}; reduce L or increase dx"
         )
 
 
-def check_batch_fits(params: Params, batch: int, device: str) -> None:
-    """Refuse a batch (given, or kept by a resumed run) whose realizations cannot fit in the free
-    memory of ``device`` at all, naming it, before it fails to allocate."""
-    need, have = batch * realization_bytes(params), free_bytes(device)
+def check_batch_fits(params: Params, batch: int, device: str, mode: str = "decoupled") -> None:
+    """Refuse a batch (given, or kept by a resumed run) whose realizations of ``mode`` cannot fit
+    in the free memory of ``device`` at all, naming it, before it fails to allocate."""
+    need, have = batch * realization_bytes(params, mode), free_bytes(device)
     if is_cuda(device) and need > have:
         release_pools(device)
         have = free_bytes(device)
@@ -70,16 +75,17 @@ def check_batch_fits(params: Params, batch: int, device: str) -> None:
         )
 
 
-def default_batch(params: Params, device: str, memory_limit: int | None = None, wanted: int | None = None) -> int:
-    """Realizations per batch that fit in half the free memory of the device (host RAM on CPU),
-    or in half of ``memory_limit`` bytes when that is smaller.
+def default_batch(params: Params, device: str, memory_limit: int | None = None, wanted: int | None = None,
+                  mode: str = "decoupled") -> int:
+    """Realizations of ``mode`` per batch that fit in half the free memory of the device (host RAM
+    on CPU), or in half of ``memory_limit`` bytes when that is smaller.
 
     On CUDA, memory that Warp's and CuPy's pools keep from earlier work counts as used by the
     driver; when that would split a run of ``wanted`` realizations, the pools hand their unused
     memory back first and the device is measured again (a run after larger ones would
     otherwise go in several batches: 2x the time of the coupled dynamics at 300 x 2^20).
     """
-    per_realization = realization_bytes(params)
+    per_realization = realization_bytes(params, mode)
 
     def fitting(free: int) -> int:
         if memory_limit is not None:

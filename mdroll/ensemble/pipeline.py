@@ -192,7 +192,7 @@ def run_ensemble(
     if batch is not None:
         batch = check_integer("batch", batch, 1, "realizations")
     device = resolve_device(device)
-    check_run_fits(params, device, memory_limit)
+    check_run_fits(params, device, memory_limit, mode)
     threads = 1 if is_cuda(device) else (cpu_cores() if threads is None else check_integer("threads", threads, 1, "threads"))
 
     key = {"params": params.as_dict(), "seed": seed, "realizations": indices.tolist(), "algorithm": algorithm,
@@ -213,9 +213,9 @@ def run_ensemble(
         if batch is None and memory_limit is None:
             batch = totals.batch
     if batch is None:
-        batch = default_batch(params, device, memory_limit, wanted=len(indices))
+        batch = default_batch(params, device, memory_limit, wanted=len(indices), mode=mode)
     totals.batch = int(batch)
-    check_batch_fits(params, min(totals.batch, len(indices)), device)
+    check_batch_fits(params, min(totals.batch, len(indices)), device, mode)
     d0 = params.d0
     h_bound = H_BOUND_SIGMAS * line_rms(params, roughness)
     timings = totals.timings

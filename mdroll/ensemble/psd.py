@@ -13,7 +13,7 @@ import functools
 
 import numpy as np
 
-from ..devices import array_module, cupy_stream, cupy_view, is_cuda, to_warp, warp
+from ..devices import array_module, cupy_stream, cupy_view, is_cuda, queue_on, to_warp, warp
 from ..physics import TWO_PI, euler_resonance_phase, hann_window, psd_from_transform
 from ..params import Params
 from ..kernels.moments import (SUM_COLUMNS, SUMMARY_THREADS, ResponseBin, add_partials, euler_impulse_response,
@@ -134,6 +134,12 @@ def _no_responses(device: str):
     return warp().zeros(1, dtype=ResponseBin, device=device)
 
 
+#: Rows whose force and acceleration spectra the coupled mode transforms at a time
+#: (:func:`psd_moments_of_batch`): its spectra's memory stays that of this many rows whatever the
+#: batch (:data:`~mdroll.ensemble.batching.COUPLED_BYTES_PER_POINT`).
+SPECTRA_ROWS = 128
+
+
 def psd_moments_of_batch(force, accel, sums, params: Params, device: str, window: bool = False):
     """Per-bin mean and M2 over the rows of the force and acceleration PSDs (section 6).
 
@@ -141,11 +147,31 @@ def psd_moments_of_batch(force, accel, sums, params: Params, device: str, window
     coupled mode); without ``accel`` the acceleration's spectrum is the decoupled wheel's,
     computed from the force's and the final states in ``sums`` (:func:`series_sums`) bin by bin
     (:class:`mdroll.kernels.moments.ResponseBin`): exact, and no acceleration series is needed.
+    With ``accel`` the rows go :data:`SPECTRA_ROWS` at a time, their moments merged in order
+    (:class:`RunningMoments`; one part: the same to the bit).
 
     ``sums`` may be on the host or on ``device``. Returns ``(force (K, 2), accel (K, 2),
     not_finite (R,))``: columns mean and M2, and a flag per row whose PSD has NaN or infinity,
     all where the work ran (NumPy on the CPU, CuPy on CUDA; nothing waits for them).
     """
+    rows = force.shape[0]
+    if accel is None or rows <= SPECTRA_ROWS:
+        return _moments_of_rows(force, accel, sums, params, device, window)
+    ends = [(i, min(i + SPECTRA_ROWS, rows)) for i in range(0, rows, SPECTRA_ROWS)]
+    parts = [_moments_of_rows(force[i:j], accel[i:j], sums[i:j], params, device, window) for i, j in ends]
+    xp = array_module(parts[0][0])
+    merged = []
+    with queue_on(device):
+        for column in range(2):
+            moments = RunningMoments(parts[0][column].shape[0], xp)
+            for (i, j), part in zip(ends, parts):
+                moments.add_moments(j - i, part[column])
+            merged.append(moments.columns())
+        return merged[0], merged[1], xp.concatenate([part[2] for part in parts])
+
+
+def _moments_of_rows(force, accel, sums, params: Params, device: str, window: bool):
+    """:func:`psd_moments_of_batch` of the rows given, in one part."""
     wp = warp()
     rows, steps = force.shape
     force_spectrum = complex_rows(rfft_rows(force, device, "force spectrum"), device)
@@ -226,6 +252,10 @@ class RunningMoments:
         delta *= self.count * n_b / total
         self._m2 += delta
         self.count = total
+
+    def columns(self):
+        """The (bins, 2) columns mean and M2, where the moments live (:func:`psd_moments_of_batch`'s form)."""
+        return array_module(self._mean).stack([self._mean, self._m2], axis=1)
 
     @property
     def stderr(self) -> np.ndarray:

@@ -27,7 +27,8 @@ How to add an algorithm
 1. Write ``mdroll/kernels/<name>.py`` (Warp only): the force kernel, launched over the
    (rows, steps) of a batch or blocks of them, writing ``force[r, s] = F - offset`` (N) with the
    wheel at spring ``first + s``; and, if it can take a step at a varying indentation, a lane
-   force ``wp.func`` and ``coupled_<name> = coupled_dynamics(<its lines type>, <lane force>)``.
+   force ``wp.func`` and ``coupled_<name> = coupled_dynamics(<its lines type>, <lane force>)``
+   (with its row set-up, a ``wp.func``, where its steps keep something of a row).
 2. Write ``mdroll/forces/<name>.py``: its ``force_launch``, a function
    ``(prepared, params, d, offset, force, lifts, device) -> wp.Launch`` that reads the
    :class:`~mdroll.forces.prepared.PreparedLines` fields it needs and records the launch that

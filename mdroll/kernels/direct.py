@@ -85,9 +85,11 @@ def contact_force_direct(
 
 
 @wp.func
-def direct_lane_force(lines: DirectLines, r: int, c: int, d: wp.float64, contact: Contact, lane: int, lanes: int) -> wp.float64:
-    """This lane's part (N) of F (eq 11-12) with the wheel at spring c of row r, indentation d (m)."""
-    return contact.k_spring * force_direct(lines.h, r, lines.n, c, d, lines.bounds[r][1], contact.curvature, lane, lanes)
+def direct_lane_force(lines: DirectLines, r: int, c: int, d: wp.float64, contact: Contact, lane: int, lanes: int):
+    """This lane's part (N) of F (eq 11-12) with the wheel at spring c of row r, indentation d (m),
+    and the row r (:func:`~mdroll.kernels.dynamics.row_index`)."""
+    return contact.k_spring * force_direct(lines.h, r, lines.n, c, d, lines.bounds[r][1], contact.curvature, lane,
+                                           lanes), r
 
 
 #: Eq 13 with the direct sum (:func:`mdroll.kernels.dynamics.coupled_dynamics`).

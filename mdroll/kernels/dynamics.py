@@ -11,16 +11,18 @@ it is kept, as a compile-time variant of the same kernel (:func:`with_integrator
 whether it explains the thesis's Figure 11 (mdroll study coupling); every amplitude grows by
 ``sqrt(1 + (omega dt)^2)`` a step under it.
 
-:func:`coupled_dynamics` makes the kernel of one force algorithm from its lane force (its
-``wp.func``), compiled apart (``wp.static``): each algorithm's kernel module declares its own.
-The contact point is a compile-time choice of the same kernel: the rigid rail of eq 13, or a
-modal state space (:class:`Modes`) stepped with the wheel (:func:`coupled_track`).
+:func:`coupled_dynamics` makes the kernel of one force algorithm from its lane force and its
+row set-up (``wp.func`` functions), compiled apart (``wp.static``): each algorithm's kernel module
+declares its own. The contact point is a compile-time choice of the same kernel: the rigid rail
+of eq 13, or a modal state space (:class:`Modes`) stepped with the wheel (:func:`coupled_track`).
 """
+
+from typing import Any
 
 import warp as wp
 
 from .common import Contact
-from .intrinsics import warp_sum_float, warp_sum_float_pair
+from .intrinsics import row_address, store_float, warp_sum_float, warp_sum_float_pair
 
 #: Lanes sharing one realization in the coupled dynamics on CUDA: one whole warp, so that a step's
 #: sum is a butterfly of warp shuffles. Warp runs tiles with one thread on the CPU: one lane there.
@@ -35,7 +37,7 @@ COUPLED_WARPS = 4
 #: thesis's scheme, for the coupling study only (module docstring).
 INTEGRATORS = ("semi-implicit", "forward-euler")
 
-# (lines_type, lane_force) of each kernel made, and every kernel made, by its arguments
+# (lines_type, lane_force, row_setup) of each kernel made, and every kernel made, by its arguments
 _MADE_FROM: dict = {}
 _KERNELS: dict = {}
 
@@ -71,21 +73,31 @@ def modal_step(modes: Modes, state: wp.array2d(dtype=wp.vec2d), r: int, u: wp.fl
     return free
 
 
-def coupled_dynamics(lines_type, lane_force, forward_euler: bool = False, modal: bool = False) -> wp.Kernel:
+@wp.func
+def row_index(lines: Any, r: int, contact: Contact) -> int:
+    """The row set-up of an algorithm that keeps nothing of a row over the steps: its index."""
+    return r
+
+
+def coupled_dynamics(lines_type, lane_force, row_setup=row_index, forward_euler: bool = False,
+                     modal: bool = False) -> wp.Kernel:
     """The eq 13 kernel of the algorithm whose share of a step's force is ``lane_force``.
 
-    ``lane_force(lines: lines_type, r: int, c: int, d: wp.float64, contact: Contact, lane: int,
-    lanes: int) -> wp.float64`` returns the part (N) of F(x_w, d) that ``lane`` of ``lanes``
-    computes with the wheel at spring c of row r, indentation d (m); the parts of all lanes sum
-    to F. ``lines_type``: what the algorithm reads of the lines (a ``wp.struct`` or an array).
-    ``forward_euler``: the thesis's forward Euler step instead of the semi-implicit one;
-    ``modal``: the contact point moves with a modal state space (:func:`coupled_track`); both
-    chosen at compile time (``wp.static``). One kernel per set of arguments, made once.
+    ``row_setup(lines: lines_type, r: int, contact: Contact) -> row`` reads, once before the
+    steps, what the steps need of row r (default: :func:`row_index`); ``lane_force(lines:
+    lines_type, row, c: int, d: wp.float64, contact: Contact, lane: int, lanes: int) ->
+    (wp.float64, row)`` returns the part (N) of F(x_w, d) that ``lane`` of ``lanes`` computes
+    with the wheel at spring c of the row, indentation d (m), and the row to pass to the next
+    step; the parts of all lanes sum to F. ``lines_type``: what the algorithm reads of the
+    lines (a ``wp.struct`` or an array). ``forward_euler``: the thesis's forward Euler step
+    instead of the semi-implicit one; ``modal``: the contact point moves with a modal state
+    space (:func:`coupled_track`); both chosen at compile time (``wp.static``). One kernel per
+    set of arguments, made once.
     """
-    key = (lines_type, lane_force, forward_euler, modal)
+    key = (lines_type, lane_force, row_setup, forward_euler, modal)
     made = _KERNELS.get(key)
     if made is None:
-        made = _KERNELS[key] = _coupled_kernel(lines_type, lane_force, forward_euler, modal)
+        made = _KERNELS[key] = _coupled_kernel(*key)
         _MADE_FROM[made] = key
     return made
 
@@ -93,19 +105,19 @@ def coupled_dynamics(lines_type, lane_force, forward_euler: bool = False, modal:
 def with_integrator(kernel: wp.Kernel, integrator: str) -> wp.Kernel:
     """The variant of a kernel of :func:`coupled_dynamics` that steps eq 13 by ``integrator``
     (one of :data:`INTEGRATORS`)."""
-    lines_type, lane_force, _, modal = _MADE_FROM[kernel]
-    return coupled_dynamics(lines_type, lane_force, integrator == INTEGRATORS[1], modal)
+    lines_type, lane_force, row_setup, _, modal = _MADE_FROM[kernel]
+    return coupled_dynamics(lines_type, lane_force, row_setup, integrator == INTEGRATORS[1], modal)
 
 
 def coupled_track(kernel: wp.Kernel) -> wp.Kernel:
     """The variant of a kernel of :func:`coupled_dynamics` whose contact point moves: the
     indentation is the wheel mass's minus the output of a modal state space (the rail's and a
     modal wheel's receptances) driven by F - F_N."""
-    lines_type, lane_force, forward_euler, _ = _MADE_FROM[kernel]
-    return coupled_dynamics(lines_type, lane_force, forward_euler, True)
+    lines_type, lane_force, row_setup, forward_euler, _ = _MADE_FROM[kernel]
+    return coupled_dynamics(lines_type, lane_force, row_setup, forward_euler, True)
 
 
-def _coupled_kernel(lines_type, lane_force, forward_euler: bool, modal: bool) -> wp.Kernel:
+def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, modal: bool) -> wp.Kernel:
 
     @wp.kernel(module="unique", enable_backward=False)
     def coupled_response(
@@ -135,8 +147,9 @@ def _coupled_kernel(lines_type, lane_force, forward_euler: bool, modal: bool) ->
         return), on the CPU each block one. Time is sequential, so the lanes share each step's
         force instead: every lane computes its part (``lane_force``) and its modes, a butterfly
         of shuffles sums both in every lane, and every lane advances the same state with the
-        same arithmetic. The output y of the next step is the modes' free part plus ``gain``
-        times the force: the modes step beside the next step's force, off its chain. Writes
+        same arithmetic. What the steps need of the row is read once before them
+        (``row_setup``) and passed from step to step. The output y of the next step is the
+        modes' free part plus ``gain`` times the force: the modes step beside the next step's force, off its chain. Writes
         ``force = F - force_offset`` (N) and ``accel = d_w''`` (m/s^2); steps without contact
         are those with F = 0.
         """
@@ -146,6 +159,9 @@ def _coupled_kernel(lines_type, lane_force, forward_euler: bool, modal: bool) ->
         if r >= rows:
             return
         lane = thread % lanes
+        row = wp.static(row_setup)(lines, r, contact)
+        forces = row_address(force, r)
+        accels = row_address(accel, r)
         d_w = d_start
         v = wp.float64(0.0)
         y = wp.float64(0.0)  # the contact point's displacement (m), modal variant
@@ -153,18 +169,19 @@ def _coupled_kernel(lines_type, lane_force, forward_euler: bool, modal: bool) ->
         for s in range(steps):
             F = wp.float64(0.0)
             if wp.static(modal):
-                part = wp.static(lane_force)(lines, r, first + s, d_w - y, contact, lane, lanes)
+                part, row = wp.static(lane_force)(lines, row, first + s, d_w - y, contact, lane, lanes)
                 sums = warp_sum_float_pair(wp.vec2d(part, free))
                 F = sums[0]
                 u = F - F_N
                 y = sums[1] + modes.gain * u
                 free = modal_step(modes, state, r, u, lane, lanes)
             else:
-                F = warp_sum_float(wp.static(lane_force)(lines, r, first + s, d_w, contact, lane, lanes))
+                part, row = wp.static(lane_force)(lines, row, first + s, d_w, contact, lane, lanes)
+                F = warp_sum_float(part)
             a = (F_N - F) * inv_mass
             if lane == 0:
-                force[r, s] = F - force_offset
-                accel[r, s] = a
+                store_float(forces, s, F - force_offset)
+                store_float(accels, s, a)
             if wp.static(forward_euler):
                 d_w += dt * v  # the old velocity (the thesis's scheme)
                 v += dt * a

@@ -93,11 +93,12 @@ def contact_force_edge(
 
 @wp.func
 def edge_lane_force(prefix: wp.array2d(dtype=wp.float64), r: int, c: int, d: wp.float64, contact: Contact, lane: int,
-                    lanes: int) -> wp.float64:
-    """Eq 49 (N) at indentation d (m), on lane 0 only (O(1) a step); 0 elsewhere and without contact."""
+                    lanes: int):
+    """Eq 49 (N) at indentation d (m), on lane 0 only (O(1) a step); 0 elsewhere and without
+    contact; and the row r (:func:`~mdroll.kernels.dynamics.row_index`)."""
     if lane == 0 and d > wp.float64(0.0):
-        return force_edge(prefix, r, c, edge_geometry(d, contact.dx, contact.R, contact.E_star))
-    return wp.float64(0.0)
+        return force_edge(prefix, r, c, edge_geometry(d, contact.dx, contact.R, contact.E_star)), r
+    return wp.float64(0.0), r
 
 
 #: Eq 13 with the edge formula (:func:`mdroll.kernels.dynamics.coupled_dynamics`).

@@ -2,16 +2,20 @@
 changes every step, so that no running totals carry over from step to step (the decoupled
 forms: :mod:`mdroll.kernels.sweep_sequential`, :mod:`mdroll.kernels.sweep_stream`).
 
-The wheel moves one spring a step, so the springs and prefix sums a step will read are known
-long before: each step asks the L1 cache for those :data:`PREFETCH_AHEAD` springs ahead of the
-wheel, and the step's own loads, which wait on d, find them there.
+What a step needs of its row is read once, before the steps (:func:`band_row`): the addresses
+of the row's heights and prefix sums and its bounds, in registers. The two reaches move by a
+spring now and then while the wheel rolls on, so each step first tests, exactly, whether last
+step's still holds (:func:`settled_reaches`; two comparisons on the step's chain instead of a
+square root). The wheel moves one spring a step, so the springs and prefix sums a step will read
+are known long before: each step asks the L1 cache for those :data:`PREFETCH_AHEAD` springs
+ahead of the wheel, and the step's own loads, which wait on d, find them there.
 """
 
 import warp as wp
 
-from .common import Contact, full_contact_sum, reach_strict
+from .common import Contact, reach_strict, sum_of_squares
 from .dynamics import coupled_dynamics
-from .intrinsics import prefetch_float_near, row_address
+from .intrinsics import load_float, prefetch_float_near, row_address
 
 #: Springs ahead of the wheel whose heights and prefix sums a coupled step prefetches: past the
 #: band's far edge (reach(d + max h), ~850 springs at the thesis's defaults), so that a line of
@@ -31,92 +35,216 @@ class SweepLines:
     n: int
 
 
+@wp.struct
+class BandRow:
+    """One row as a coupled step reads it (:func:`band_row`), in registers over the steps: its
+    index ``r``, the addresses of its heights ``h`` and prefix sums ``prefix`` (rows contiguous),
+    its ``n`` springs and bounds ``low = min h``, ``high = max h`` (m); and the last step's
+    reaches, each with the levels ``(from, to]`` (m) over which it holds
+    (:func:`settled_reaches`): ``core`` of ``d + low``, ``outer`` of ``d + high``, and the
+    core's ``2 core + 1`` springs and ``curvature sum_{|m| <= core} m^2`` (m)."""
+
+    r: int
+    h: wp.uint64
+    prefix: wp.uint64
+    n: int
+    low: wp.float64
+    high: wp.float64
+    core: int
+    core_from: wp.float64
+    core_to: wp.float64
+    core_width: wp.float64
+    core_squares: wp.float64
+    outer: int
+    outer_from: wp.float64
+    outer_to: wp.float64
+
+
 @wp.func
-def prefetch_ahead(h: wp.array2d(dtype=wp.float64), prefix: wp.array2d(dtype=wp.float64), r: int, c: int, n: int,
-                   lane: int):
+def band_row(h: wp.array2d(dtype=wp.float64), prefix: wp.array2d(dtype=wp.float64), r: int, n: int,
+             bounds: wp.vec2d) -> BandRow:
+    """Row r of a batch with the bounds ``(min h, max h)`` (m) of the band sums, before the
+    first step: no reach holds yet (an empty range of levels)."""
+    row = BandRow()
+    row.r = r
+    row.h = row_address(h, r)
+    row.prefix = row_address(prefix, r)
+    row.n = n
+    row.low = bounds[0]
+    row.high = bounds[1]
+    row.core = -1
+    row.core_from = wp.float64(0.0)
+    row.core_to = wp.float64(-1.0)
+    row.core_width = wp.float64(0.0)
+    row.core_squares = wp.float64(0.0)
+    row.outer = -1
+    row.outer_from = wp.float64(0.0)
+    row.outer_to = wp.float64(-1.0)
+    return row
+
+
+@wp.func
+def reach_levels(m: int, curvature: wp.float64) -> wp.vec2d:
+    """The levels ``(from, to]`` (m) over which :func:`~mdroll.kernels.common.reach_strict` is m
+    (>= -1): ``(fl(fl(curvature m) m), fl(fl(curvature (m+1)) (m+1))]`` by the same float64
+    tests, which grow with m; from -infinity for m = -1 (its levels are those <= 0)."""
+    low = wp.float64(-wp.inf)
+    if m >= 0:
+        root = wp.float64(m)
+        low = curvature * root * root
+    root = wp.float64(m + 1)
+    return wp.vec2d(low, curvature * root * root)
+
+
+@wp.func
+def settled_reaches(row: BandRow, d: wp.float64, curvature: wp.float64) -> BandRow:
+    """The row with the reaches at indentation d (m): ``core = reach_strict(d + min h)`` and
+    ``outer = reach_strict(d + max h)`` (:func:`~mdroll.kernels.common.reach_strict`). Each
+    keeps last step's where its level still lies in that reach's range, an exact test; else
+    it is found anew with its range (and the core's width and sum of squares)."""
+    moved = row
+    level = d + row.low
+    if not (row.core_from < level and level <= row.core_to):
+        core = reach_strict(level, curvature)
+        levels = reach_levels(core, curvature)
+        moved.core = core
+        moved.core_from = levels[0]
+        moved.core_to = levels[1]
+        moved.core_width = wp.float64(2 * core + 1)
+        moved.core_squares = wp.float64(0.0)
+        if core >= 0:
+            moved.core_squares = curvature * sum_of_squares(-core, core)
+    level = d + row.high
+    if not (row.outer_from < level and level <= row.outer_to):
+        outer = reach_strict(level, curvature)
+        levels = reach_levels(outer, curvature)
+        moved.outer = outer
+        moved.outer_from = levels[0]
+        moved.outer_to = levels[1]
+    return moved
+
+
+@wp.func
+def prefetch_ahead(row: BandRow, c: int, lane: int):
     """Lane 0 asks the L1 cache for the height and the prefix sum :data:`PREFETCH_AHEAD`
-    springs ahead of spring c of row r (rows contiguous); nothing on the CPU."""
-    if lane == 0:
-        i = wp.min(c + PREFETCH_AHEAD, n - 1)
-        prefetch_float_near(row_address(h, r), i)
-        prefetch_float_near(row_address(prefix, r), i)
+    springs ahead of spring c, every 16th spring (a cache line of each); nothing on the CPU."""
+    if lane == 0 and (c & 15) == 0:
+        i = wp.min(c + PREFETCH_AHEAD, row.n - 1)
+        prefetch_float_near(row.h, i)
+        prefetch_float_near(row.prefix, i)
 
 
 @wp.func
-def band_heights(h: wp.array2d(dtype=wp.float64), r: int, right: int, left: int, lanes: int, n: int) -> wp.vec4d:
-    """The heights of springs ``right, right + lanes, left, left + lanes`` of row r, each index
-    clamped into the row: loaded unconditionally, so that the four loads are in flight together
-    (:func:`band_term` drops those past a band's end)."""
-    last = n - 1
-    return wp.vec4d(h[r, wp.clamp(right, 0, last)], h[r, wp.clamp(right + lanes, 0, last)],
-                    h[r, wp.clamp(left, 0, last)], h[r, wp.clamp(left + lanes, 0, last)])
+def core_sum(row: BandRow, c: int, d: wp.float64, curvature: wp.float64) -> wp.float64:
+    """Exact ``sum_{|l - c| <= core} (h_l + d - curvature (l - c)^2)`` (m) over the row's springs
+    (eq 18-20, as :func:`~mdroll.kernels.common.full_contact_sum`): away from the row's ends
+    with the core's width and sum of squares of :func:`settled_reaches`."""
+    i = c - row.core
+    j = c + row.core + 1
+    if row.core < 0:
+        return wp.float64(0.0)
+    if i >= 0 and j <= row.n:
+        return (load_float(row.prefix, j) - load_float(row.prefix, i)) + row.core_width * d - row.core_squares
+    i = wp.max(i, 0)
+    j = wp.min(j, row.n)
+    if j <= i:
+        return wp.float64(0.0)
+    return (load_float(row.prefix, j) - load_float(row.prefix, i)) + wp.float64(j - i) * d - curvature * sum_of_squares(
+        i - c, j - 1 - c)
 
 
 @wp.func
-def band_term(height: wp.float64, l: int, end: int, c: int, d: wp.float64, curvature: wp.float64) -> wp.float64:
-    """``max(h_l + d - curvature (l - c)^2, 0)`` (m; eq 10) for spring l of height ``height`` if
-    ``l < end``, else 0: adding it leaves a sum of such terms unchanged to the bit."""
-    m = wp.float64(l - c)
+def band_heights(row: BandRow, right: int, left: int, lanes: int) -> wp.vec4d:
+    """The heights of springs ``right, right + lanes, left, left + lanes`` (>= 0) of the row,
+    each index clamped to its last spring: loaded unconditionally, so that the four loads are
+    in flight together (:func:`band_term` drops those past a band's end)."""
+    last = row.n - 1
+    return wp.vec4d(load_float(row.h, wp.min(right, last)), load_float(row.h, wp.min(right + lanes, last)),
+                    load_float(row.h, wp.min(left, last)), load_float(row.h, wp.min(left + lanes, last)))
+
+
+@wp.func
+def band_term(height: wp.float64, l: int, end: int, m: wp.float64, d: wp.float64,
+              curvature: wp.float64) -> wp.float64:
+    """``max(h_l + d - curvature m^2, 0)`` (m; eq 10) for spring l at offset ``|m|`` (a float64
+    integer) from the wheel, of height ``height``, if ``l < end``, else 0: adding it leaves a
+    sum of such terms unchanged to the bit."""
     return wp.where(l < end, wp.max(height + d - curvature * m * m, wp.float64(0.0)), wp.float64(0.0))
 
 
 @wp.func
-def banded_force(h: wp.array2d(dtype=wp.float64), prefix: wp.array2d(dtype=wp.float64), r: int, n: int, c: int,
-                 d: wp.float64, core: int, outer: int, contact: Contact, lane: int, lanes: int) -> wp.float64:
-    """This lane's part (N) of F (eq 11-12) with the wheel at spring c of row r, indentation d
-    (m), from the reaches ``core = reach_strict(d + min h)`` and ``outer = reach_strict(d + max
-    h)`` (>= 0) of the row's bounds: lane 0 adds the certain core ``|m| <= core`` in closed form
-    (eq 18-20, as the sweep's anchor), and the lanes share the two bands out to ``outer``,
-    adjacent lanes on adjacent springs, summed spring by spring (eq 10), each band in its own
-    sum in the order of :func:`~mdroll.kernels.common.spring_sum`.
+def banded_force(row: BandRow, c: int, d: wp.float64, contact: Contact, lane: int, lanes: int) -> wp.float64:
+    """This lane's part (N) of F (eq 11-12) with the wheel at spring c of the row, indentation d
+    (m), from the row's reaches (:func:`settled_reaches`, ``outer >= 0``): lane 0 adds the
+    certain core ``|m| <= core`` in closed form (:func:`core_sum`), and the lanes share the two
+    bands out to ``outer``, adjacent lanes on adjacent springs, summed spring by spring (eq 10),
+    each band in its own sum in the order of :func:`~mdroll.kernels.common.spring_sum`.
 
     A step's loads all wait on d, so they go out together: the first round's four heights
     (two springs of each band, :func:`band_heights`), then the core's two prefix sums (every
     lane computes the closed form; lane 0 keeps it), and each round's heights load before the
-    previous round's terms are added."""
+    previous round's terms are added. The offsets are float64 integers, stepped by exact adds."""
     curvature = contact.curvature
+    core = row.core
+    outer = row.outer
     # right band c+core+1 .. c+outer, left band c-outer .. c-max(core, 0)-1 (core -1: the right one holds c)
     right = wp.max(c + core + 1, 0) + lane
-    right_end = wp.min(c + outer + 1, n)
+    right_end = wp.min(c + outer + 1, row.n)
     left = wp.max(c - outer, 0) + lane
-    left_end = wp.min(c - wp.max(core, 0), n)
-    heights = band_heights(h, r, right, left, lanes, n)
-    core_sum = full_contact_sum(prefix, r, wp.max(c - core, 0), wp.min(c + core + 1, n), c, d, curvature)
+    left_end = wp.min(c - wp.max(core, 0), row.n)
+    heights = band_heights(row, right, left, lanes)
+    core_part = core_sum(row, c, d, curvature)
+    offset_right = wp.float64(right - c)  # grows by `lanes` a spring
+    offset_left = wp.float64(c - left)  # shrinks by `lanes` a spring
+    stride = wp.float64(lanes)
     right_sum = wp.float64(0.0)
     left_sum = wp.float64(0.0)
     while right < right_end or left < left_end:
         now = heights
-        heights = band_heights(h, r, right + 2 * lanes, left + 2 * lanes, lanes, n)
-        right_sum += band_term(now[0], right, right_end, c, d, curvature)
-        right_sum += band_term(now[1], right + lanes, right_end, c, d, curvature)
-        left_sum += band_term(now[2], left, left_end, c, d, curvature)
-        left_sum += band_term(now[3], left + lanes, left_end, c, d, curvature)
+        heights = band_heights(row, right + 2 * lanes, left + 2 * lanes, lanes)
+        right_sum += band_term(now[0], right, right_end, offset_right, d, curvature)
+        right_sum += band_term(now[1], right + lanes, right_end, offset_right + stride, d, curvature)
+        left_sum += band_term(now[2], left, left_end, offset_left, d, curvature)
+        left_sum += band_term(now[3], left + lanes, left_end, offset_left - stride, d, curvature)
         right += 2 * lanes
         left += 2 * lanes
+        offset_right += stride + stride
+        offset_left -= stride + stride
     total = wp.float64(0.0)
     if lane == 0:
-        total = core_sum
+        total = core_part
     total += right_sum
     total += left_sum
     return contact.k_spring * total
 
 
 @wp.func
-def sweep_lane_force(lines: SweepLines, r: int, c: int, d: wp.float64, contact: Contact, lane: int,
-                     lanes: int) -> wp.float64:
-    """This lane's part (N) of F (eq 11-12) with the wheel at spring c of row r, indentation d (m),
-    for the coupled dynamics, where d changes every step and no totals carry over: the core in
-    closed form and the bands spring by spring (:func:`banded_force`). O(band) a step: ~44
-    springs a side at the thesis's defaults, growing as 1 / dx under refinement. Both reaches
-    are computed before either is tested, side by side."""
-    prefetch_ahead(lines.h, lines.prefix, r, c, lines.n, lane)
-    box = lines.bounds[r]
-    outer = reach_strict(d + box[1], contact.curvature)  # no spring reaches farther
-    core = reach_strict(d + box[0], contact.curvature)  # every spring reaches this far (-1: none surely)
-    if outer < 0:
-        return wp.float64(0.0)
-    return banded_force(lines.h, lines.prefix, r, lines.n, c, d, core, outer, contact, lane, lanes)
+def sweep_row(lines: SweepLines, r: int, contact: Contact) -> BandRow:
+    """The sweep's row set-up for the coupled dynamics (:func:`band_row`)."""
+    return band_row(lines.h, lines.prefix, r, lines.n, lines.bounds[r])
+
+
+@wp.func
+def lane_band_force(row: BandRow, c: int, d: wp.float64, contact: Contact, lane: int, lanes: int):
+    """This lane's part (N) of F (:func:`banded_force`) at this step's reaches, and the row with
+    them (:func:`settled_reaches`)."""
+    settled = settled_reaches(row, d, contact.curvature)
+    if settled.outer < 0:
+        return wp.float64(0.0), settled
+    return banded_force(settled, c, d, contact, lane, lanes), settled
+
+
+@wp.func
+def sweep_lane_force(lines: SweepLines, row: BandRow, c: int, d: wp.float64, contact: Contact, lane: int,
+                     lanes: int):
+    """This lane's part (N) of F (eq 11-12) with the wheel at spring c of the row, indentation d
+    (m), for the coupled dynamics, where d changes every step and no totals carry over: the
+    core in closed form and the bands spring by spring (:func:`lane_band_force`). O(band) a
+    step: ~44 springs a side at the thesis's defaults, growing as 1 / dx under refinement.
+    Returns the part and the row with this step's reaches."""
+    prefetch_ahead(row, c, lane)
+    return lane_band_force(row, c, d, contact, lane, lanes)
 
 
 #: Eq 13 with the sweep's coupled step (:func:`mdroll.kernels.dynamics.coupled_dynamics`).
-coupled_sweep = coupled_dynamics(SweepLines, sweep_lane_force)
+coupled_sweep = coupled_dynamics(SweepLines, sweep_lane_force, sweep_row)

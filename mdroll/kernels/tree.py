@@ -55,7 +55,7 @@ from .common import (
     tree_stack,
 )
 from .dynamics import coupled_dynamics
-from .sweep_coupled import banded_force, prefetch_ahead
+from .sweep_coupled import BandRow, band_row, lane_band_force, prefetch_ahead, settled_reaches
 
 #: Nodes are pushed as ``(index << LEVEL_BITS) | level`` (levels < 2^LEVEL_BITS = 32).
 LEVEL_BITS = wp.constant(5)
@@ -479,23 +479,28 @@ def contact_force_tree(
 
 
 @wp.func
-def tree_lane_force(lines: TreeLines, r: int, c: int, d: wp.float64, contact: Contact, lane: int, lanes: int) -> wp.float64:
-    """This lane's part (N) of F (eq 11-12) with the wheel at spring c of row r, indentation d (m).
-    As the main kernel, by the band's width from the root bounds: up to ``band_limit`` springs a
-    side, the core in closed form and the bands spring by spring (:func:`banded_force`, the
+def tree_row(lines: TreeLines, r: int, contact: Contact) -> BandRow:
+    """The tree's row set-up for the coupled dynamics: the row with its root bounds
+    (:func:`~mdroll.kernels.sweep_coupled.band_row`)."""
+    return band_row(lines.h, lines.prefix, r, lines.n, lines.nodes[r, lines.level_offsets[lines.top_level]])
+
+
+@wp.func
+def tree_lane_force(lines: TreeLines, row: BandRow, c: int, d: wp.float64, contact: Contact, lane: int, lanes: int):
+    """This lane's part (N) of F (eq 11-12) with the wheel at spring c of the row, indentation d
+    (m), and the row with this step's reaches. As the main kernel, by the band's width from the
+    root bounds (last step's, the choice being one of speed only): up to ``band_limit`` springs
+    a side, the core in closed form and the bands spring by spring (:func:`lane_band_force`, the
     sweep's coupled step, its springs prefetched); wider, lane 0 the core and each lane its
     slice of the bands by traversal (:func:`force_tree`)."""
-    prefetch_ahead(lines.h, lines.prefix, r, c, lines.n, lane)
-    root = lines.nodes[r, lines.level_offsets[lines.top_level]]
-    outer = reach_strict(d + root[1], contact.curvature)
-    core = reach_strict(d + root[0], contact.curvature)
-    if outer < 0:
-        return wp.float64(0.0)
-    if outer - wp.max(core, 0) <= lines.band_limit:
-        return banded_force(lines.h, lines.prefix, r, lines.n, c, d, core, outer, contact, lane, lanes)
+    prefetch_ahead(row, c, lane)
+    if row.outer - wp.max(row.core, 0) <= lines.band_limit:
+        return lane_band_force(row, c, d, contact, lane, lanes)
+    settled = settled_reaches(row, d, contact.curvature)
     return contact.k_spring * force_tree(lines.h, lines.prefix, lines.nodes, lines.level_offsets, lines.top_level,
-                                         lines.leaf_size, r, lines.n, c, d, contact.curvature, lane, lanes)
+                                         lines.leaf_size, row.r, lines.n, c, d, contact.curvature, lane,
+                                         lanes), settled
 
 
 #: Eq 13 with the tree (:func:`mdroll.kernels.dynamics.coupled_dynamics`).
-coupled_tree = coupled_dynamics(TreeLines, tree_lane_force)
+coupled_tree = coupled_dynamics(TreeLines, tree_lane_force, tree_row)
