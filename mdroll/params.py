@@ -375,3 +375,4 @@ class Params:
             "springs_in_contact": (self.springs_in_contact, "-", "2a/dx"),
             "lambda_A": (self.lambda_A, "m^(2-2H)", "PSD prefactor (eq 50, discrete)"),
         }
+
