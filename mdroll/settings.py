@@ -20,11 +20,14 @@ def split_setting(item: str, form: str = "KEY=VALUE") -> tuple[str, str]:
     return key.strip(), value.strip()
 
 
-def parse_number(key: str, text: str) -> float:
-    """The number ``text`` given for ``key``, or ParameterError."""
+def parse_number(key: str, text) -> float:
+    """The number ``text`` given for ``key`` (text, or a number as a TOML table gives it; not a
+    bool), or ParameterError."""
     try:
+        if isinstance(text, bool):
+            raise ValueError
         return float(text)
-    except ValueError:
+    except (TypeError, ValueError):
         raise ParameterError(f"{key} = {text!r} is not allowed: it must be a number") from None
 
 
@@ -40,7 +43,7 @@ class Presettable:
     @classmethod
     def preset(cls, name: str):
         """The preset ``name`` of ``PRESETS``."""
-        if name not in cls.PRESETS:
+        if not isinstance(name, str) or name not in cls.PRESETS:
             raise ParameterError(f"{cls.PREFIX} = {name!r} is not allowed: choose one of {list(cls.PRESETS)}")
         return cls(**cls.PRESETS[name])
 

@@ -39,6 +39,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 
 from mdroll.physics import TWO_PI
 
@@ -47,6 +48,11 @@ from mdroll.physics import TWO_PI
 PASSIVITY_GRID = TWO_PI * np.geomspace(1e-3, 1e7, 1001)
 #: Largest ``Im H / |H|`` that :func:`passive_residues` leaves: rounding, not a loss of passivity.
 PASSIVITY_TOLERANCE = 1e-10
+#: Largest ``|Re s| / |s|`` of a zero of ``H(s) - H(-s)`` taken as a candidate crossing of the
+#: imaginary axis (:meth:`ModalForm.crossings`): generous, since the pencil's eigenvalues carry the
+#: rounding of a fit's cancelling residues, and a candidate that is none only adds a probe to
+#: :meth:`ModalForm.is_passive`.
+CROSSING_TOLERANCE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -77,6 +83,46 @@ class ModalForm:
         f = np.geomspace(1e-3, 1e7, 100_000) if f is None else f
         h = self.response(f)
         return float(np.max(h.imag / np.abs(h)))
+
+    def crossings(self) -> np.ndarray:
+        """The frequencies (Hz, > 0, ascending) where ``Im H(i omega)`` may change sign: the
+        (nearly, :data:`CROSSING_TOLERANCE`) imaginary zeros ``s = i omega`` of
+        ``Phi(s) = H(s) - H(-s)``, the finite generalized eigenvalues of the pencil
+        ``([[A_Phi, B_Phi], [C_Phi, 0]], diag(I, 0))`` of its realization
+        ``A_Phi = diag(P, -P)``, ``B_Phi = 1``, ``C_Phi = [C, C]`` (P the poles and their
+        conjugates, C their residues): the skew-Hamiltonian/Hamiltonian pencil test of passivity
+        (Grivet-Talocia & Gustavsen, *Passive Macromodeling*, Wiley 2016) for a receptance,
+        whose mobility ``s H`` has no direct term. The pencil is scaled to the poles' median
+        magnitude and the residues' largest."""
+        if self.order == 0:
+            return np.zeros(0)
+        scale = float(np.median(np.abs(self.poles)))
+        poles = np.concatenate([self.poles, np.conj(self.poles)]) / scale
+        res = np.concatenate([self.residues, np.conj(self.residues)])
+        res = res / np.max(np.abs(res))
+        n = 2 * len(poles)
+        pencil = np.zeros((n + 1, n + 1), dtype=complex)
+        pencil[:n, :n] = np.diag(np.concatenate([poles, -poles]))
+        pencil[:n, n] = 1.0
+        pencil[n, :n] = np.concatenate([res, res])
+        mass = np.diag(np.concatenate([np.ones(n), [0.0]]))
+        zeros = scipy.linalg.eigvals(pencil, mass)
+        zeros = zeros[np.isfinite(zeros)] * scale
+        on_axis = (np.abs(zeros.real) <= CROSSING_TOLERANCE * np.abs(zeros)) & (zeros.imag > 0)
+        return np.unique(np.round(zeros.imag[on_axis] / TWO_PI, 9))
+
+    def is_passive(self) -> bool:
+        """Whether ``Im H(i omega) <= 0`` at every omega > 0, decided exactly: Im H keeps its
+        sign between two :meth:`crossings`, so it is tested at one point of each interval
+        between them (and below the first and above the last), with :data:`PASSIVITY_TOLERANCE`
+        relative to |H| for rounding. Stability (every Re p < 0) is the modal form's own."""
+        edges = self.crossings()
+        if len(edges) == 0:
+            probes = np.array([1.0])
+        else:
+            probes = np.concatenate([[edges[0] / 2], np.sqrt(edges[1:] * edges[:-1]), [2 * edges[-1]]])
+        h = self.response(probes)
+        return bool(np.all(self.poles.real < 0) and np.all(h.imag <= PASSIVITY_TOLERANCE * np.abs(h)))
 
     def discretize(self, dt: float):
         """(phi, gamma), complex arrays of the zero-order-hold step of length ``dt`` (s): module

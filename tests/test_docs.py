@@ -188,6 +188,13 @@ COMMANDS = {
     "python benchmarks/cpu_full_run.py --repeats 3 --out cpu_full_run.json":
         ("options", "python benchmarks/cpu_full_run.py"),
     "OUT=DIR bash benchmarks/gpu_session.sh tests": ("ci", "the GPU machine's session script"),
+    # track.md: the track alone
+    "mdroll track receptance --set track=ballasted-soft-pad --position midspan --out rec":
+        ("run", "mdroll track receptance --set track=ballasted-soft-pad --position midspan --points 20 --out rec",
+         "tmp"),
+    "mdroll track decay --set track=ballasted-stiff-pad --set track.pad_loss=0.3 --out dec":
+        ("run", "mdroll track decay --set track=ballasted-stiff-pad --set track.pad_loss=0.3 --out dec", "tmp"),
+    "python benchmarks/track_chain.py --out track_chain.json": ("options", "python benchmarks/track_chain.py"),
     # track.md: the track study (quick: minutes of CPU; full: GPU) and the inverse fit on a track
     "mdroll roughness check --only track --device cpu --out track-quick": ("options", "mdroll roughness check"),
     "mdroll roughness check --full --only track --device cuda --out track-full": ("options", "mdroll roughness check"),

@@ -62,8 +62,9 @@ def test_modal_wheel_is_its_modes_and_a_causal_suspension():
 
 
 #: The fits' largest complex error over 50 Hz - 5 kHz (dB), rounded up (docs/track.md, "State space").
-RAIL_FIT_DB = {("ballasted-soft-pad", "sleeper"): 0.35, ("ballasted-soft-pad", "midspan"): 0.3,
-               ("ballasted-stiff-pad", "sleeper"): 0.6, ("slab", "sleeper"): 0.2}
+RAIL_FIT_DB = {("ballasted-soft-pad", "sleeper"): 0.3, ("ballasted-soft-pad", "midspan"): 0.25,
+               ("ballasted-stiff-pad", "sleeper"): 0.5, ("ballasted-stiff-pad", "midspan"): 0.35,
+               ("slab", "sleeper"): 0.2, ("slab", "midspan"): 0.15}
 
 
 @pytest.mark.parametrize("name, position", list(RAIL_FIT_DB))
@@ -78,7 +79,29 @@ def test_rail_fit_is_stable_and_close(name, position):
 
 
 def test_oscillators_are_passive():
-    assert Wheel.preset("standard-920").modal_form().passivity_margin() < 1e-12
+    form = Wheel.preset("standard-920").modal_form()
+    assert form.passivity_margin() < 1e-12
+    assert len(form.crossings()) == 0 and form.is_passive()
+
+
+def test_crossings_are_the_roots_of_the_imaginary_part():
+    # two oscillators, the second of negative modal mass: Im H = 0 where
+    # zeta1 w1 m2 |D2|^2 + zeta2 w2 m1 |D1|^2 = 0, |Dk|^2 = (wk^2 - x)^2 + 4 zetak^2 wk^2 x, x = omega^2:
+    # a quadratic in x whose positive roots numpy finds independently of the pencil
+    (f1, m1, z1), (f2, m2, z2) = (100.0, 2.0, 0.05), (300.0, -5.0, 0.08)
+    form = ModalForm.oscillators([f1, f2], [m1, m2], [z1, z2])
+    w1, w2 = TWO_PI * f1, TWO_PI * f2
+
+    def d2(w, z):
+        return np.polyadd(np.polymul([1, -w * w], [1, -w * w]), [4 * z * z * w * w, 0])
+
+    roots = np.roots(np.polyadd(np.polymul([z1 * w1 / m1], d2(w2, z2)), np.polymul([z2 * w2 / m2], d2(w1, z1))))
+    roots = roots[(np.abs(roots.imag) < 1e-9 * np.abs(roots)) & (roots.real > 0)].real
+    np.testing.assert_allclose(form.crossings(), np.sort(np.sqrt(roots)) / TWO_PI, rtol=1e-9)
+    assert not form.is_passive()
+    # the sweep agrees: Im H > 0 above the crossing only
+    f = form.crossings()[0] * np.array([0.5, 2.0])
+    assert form.response(f)[0].imag < 0 < form.response(f)[1].imag
 
 
 def test_rigid_track_has_no_state():

@@ -14,6 +14,7 @@ from mdroll.track import (PRESETS, Track, band_levels, chain_for_params, continu
                           floquet_multipliers, iso3095_decay_limit, linear_chain, pinned_pinned_frequency,
                           receptance, third_octave_centres)
 from mdroll.track.beam import foundation_stiffness
+from mdroll.track.periodic import point_receptance
 
 BANDS = third_octave_centres(100, 5000)
 #: Euler-Bernoulli limit: no shear flexibility, no rotary inertia.
@@ -114,6 +115,16 @@ def test_zone_average_has_converged():
         np.testing.assert_allclose(coarse, fine, rtol=1e-9)
 
 
+@pytest.mark.parametrize("name", ["ballasted-soft-pad", "ballasted-stiff-pad", "slab"])
+def test_closed_forms_are_the_zone_average(name):
+    # the residues of the contour integral against the trapezoid rule over the zone
+    track = Track.preset(name)
+    f = np.geomspace(5, 10000, 40)
+    for position, x0 in (("sleeper", 0.0), ("midspan", 0.5 * track.sleeper_spacing)):
+        np.testing.assert_allclose(point_receptance(f, track, position), discrete_receptance(f, track, x0=x0),
+                                   rtol=1e-8)
+
+
 @pytest.mark.parametrize("f", [300.0, 800.0, 2000.0])
 def test_floquet_decay_is_the_spatial_decay_of_the_transfer_receptance(f):
     track = Track.preset("ballasted-soft-pad")
@@ -134,8 +145,28 @@ def test_presets_decay_rates_against_published_behaviour():
     assert np.all(stiff[(BANDS >= 400) & (BANDS <= 800)] > 4)
     assert np.all(stiff[(BANDS >= 500) & (BANDS <= 1600)] > soft[(BANDS >= 500) & (BANDS <= 1600)])
     assert np.all(slab[(BANDS >= 500) & (BANDS <= 1600)] < 0.6)
-    limit_f, limit = iso3095_decay_limit()
-    assert limit_f[0] == 250 and limit_f[-1] == 5000 and np.all(np.diff(limit) <= 0)
+
+
+def test_iso3095_decay_limit_is_its_figure_3():
+    """EN ISO 3095:2013 Figure 3 (as transcribed by jmrplens/phonometry): 2 dB/m at 250-315 Hz,
+    6 dB/m at 400-630 Hz and 0.8 dB/m from 1 kHz to 5 kHz, joined at 800 Hz by the straight line
+    of the log-log figure between 630 Hz and 1 kHz, 6 (0.8 / 6)^(1/2) dB/m."""
+    bands, limit = iso3095_decay_limit()
+    np.testing.assert_array_equal(bands, [250, 315, 400, 500, 630, 800, 1000, 1250, 1600, 2000, 2500, 3150, 4000,
+                                          5000])
+    assert limit[5] == pytest.approx(6.0 * np.sqrt(0.8 / 6.0), abs=0.005)
+
+
+def test_presets_against_the_iso3095_limit():
+    """Against the EN ISO 3095 vertical limit (the test above): the stiff-pad preset meets it in
+    every band 250 Hz - 5 kHz; the soft pad falls below its 6 dB/m at 400-630 Hz, above the
+    rail-on-pad resonance (329 Hz), where the soft pad decouples the rail from the sleepers."""
+    bands, limit = iso3095_decay_limit()
+    exact = 1000.0 * 10.0 ** (np.round(10 * np.log10(bands / 1000.0)) / 10)
+    stiff = decay_rate(Track.preset("ballasted-stiff-pad"), exact)
+    soft = decay_rate(Track.preset("ballasted-soft-pad"), exact)
+    assert np.all(stiff >= limit)
+    assert np.all(soft[(bands >= 400) & (bands <= 630)] < limit[(bands >= 400) & (bands <= 630)])
 
 
 def test_discrete_and_continuous_decay_agree_where_the_supports_blur():

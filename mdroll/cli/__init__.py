@@ -20,12 +20,12 @@ import sys
 import warnings
 
 from ..errors import MdrollError, NonFiniteError
-from . import bench, invert, merge, params, roughness, run, study, validate
+from . import bench, invert, merge, params, roughness, run, study, track, validate
 from .common import Parser, release_locks
 
 #: The commands in the order ``mdroll --help`` lists them.
 COMMANDS = {"params": params, "run": run, "validate": validate, "merge": merge, "invert": invert, "bench": bench,
-            "roughness": roughness, "study": study}
+            "roughness": roughness, "study": study, "track": track}
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -16,7 +16,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from ..errors import MdrollError, UsageError
+from ..errors import MdrollError, ParameterError, UsageError
 from ..files import read_toml
 from ..settings import split_setting
 from ..track import Track
@@ -132,11 +132,16 @@ def _parse_value(key: str, text: str):
         raise UsageError(f"--set {key}={text}: not {kind}") from None
 
 
+#: The config file's tables of the track and the wheel (:func:`config_structures`).
+STRUCTURE_TABLES = ("track", "wheel")
+
+
 def load_config(path: str) -> dict:
-    """Parameters from a TOML file: top-level keys, or a ``[params]`` table alone; anything else
-    (unknown keys, other tables, top-level keys beside ``[params]``, a ``params`` that is not a
-    table) is refused, naming the key."""
-    data = read_toml(path, "config file", UsageError)
+    """Parameters from a TOML file: top-level keys, or a ``[params]`` table alone, beside which
+    only the ``[track]`` and ``[wheel]`` tables may stand (:func:`config_structures`); anything
+    else (unknown keys, other tables, top-level keys beside ``[params]``, a ``params`` that is not
+    a table) is refused, naming the key."""
+    data = {k: v for k, v in read_toml(path, "config file", UsageError).items() if k not in STRUCTURE_TABLES}
     if "params" in data:
         if not isinstance(data["params"], dict):
             raise UsageError(f"config file {path}: 'params' must be a [params] table of parameters, "
@@ -147,11 +152,26 @@ def load_config(path: str) -> dict:
         data = data["params"]
     tables = sorted(key for key, value in data.items() if isinstance(value, dict))
     if tables:
-        raise UsageError(f"config file {path}: unknown table(s) {tables}; only [params] is read")
+        raise UsageError(f"config file {path}: unknown table(s) {tables}; only [params], [track] and [wheel] are read")
     unknown = sorted(set(data) - set(PARAM_NAMES))
     if unknown:
         raise UsageError(f"config file {path}: unknown parameter(s) {unknown}; valid ones are: {', '.join(PARAM_NAMES)}")
     return data
+
+
+def config_structures(path: str) -> dict[str, list]:
+    """The ``[track]`` and ``[wheel]`` tables of a TOML config file as settings, ``{"track":
+    [("track", PRESET), ("track.KEY", value), ...], "wheel": [...]}``: ``preset = "NAME"`` is
+    ``--set track=NAME``, every other key ``--set track.KEY=VALUE``; a ``track`` or ``wheel``
+    that is not a table is refused."""
+    data = read_toml(path, "config file", UsageError)
+    settings: dict[str, list] = {name: [] for name in STRUCTURE_TABLES}
+    for name in STRUCTURE_TABLES:
+        table = data.get(name, {})
+        if not isinstance(table, dict):
+            raise UsageError(f"config file {path}: '{name}' must be a [{name}] table of keys, got {table!r}")
+        settings[name] = [(name if key == "preset" else f"{name}.{key}", value) for key, value in table.items()]
+    return settings
 
 
 def build_params(args, base: dict | None = None) -> tuple[Params, int | None]:
@@ -186,14 +206,23 @@ def _structure(key: str) -> str | None:
 
 
 def build_structures(args):
-    """The run's (track, wheel) from ``--set track=PRESET``, ``track.KEY=VALUE``, ``wheel=PRESET``
-    and ``wheel.KEY=VALUE`` (None where none is given):
+    """The run's (track, wheel) from the config file's ``[track]`` and ``[wheel]`` tables
+    (:func:`config_structures`), then ``--set track=PRESET``, ``track.KEY=VALUE``,
+    ``wheel=PRESET`` and ``wheel.KEY=VALUE`` on top (None where neither gives any):
     :meth:`mdroll.settings.Presettable.from_settings` of :class:`~mdroll.track.Track` and
-    :class:`~mdroll.wheel.Wheel`."""
+    :class:`~mdroll.wheel.Wheel`, each preset first, then the keys in order. A bad key or value
+    of the file names the file."""
+    path = getattr(args, "config", None)
+    tables = config_structures(path) if path else {}
     settings = _settings(args)
     made = []
     for kind in (Track, Wheel):
-        own = [(key, text) for key, text in settings if _structure(key) == kind.PREFIX]
+        from_file = tables.get(kind.PREFIX, [])
+        try:
+            kind.from_settings(from_file)
+        except ParameterError as exc:
+            raise UsageError(f"config file {path}: [{kind.PREFIX}] {exc}") from None
+        own = from_file + [(key, text) for key, text in settings if _structure(key) == kind.PREFIX]
         made.append(kind.from_settings(own) if own else None)
     return tuple(made)
 

@@ -18,7 +18,7 @@ FIT_SAMPLES = 600
 #: Band (Hz) over which the fit's error is stated, and the fit's starting pole pairs and
 #: iterations (docs/track.md, "State space": more pole pairs fit worse, the problem's conditioning).
 CHECK_BAND = (50.0, 5000.0)
-FIT_ORDER = 50
+FIT_ORDER = 64
 FIT_ITERATIONS = 6
 
 

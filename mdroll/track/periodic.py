@@ -77,21 +77,60 @@ def discrete_receptance(f, track, x0=0.0, x=None, zone_points=ZONE_POINTS):
     return out.reshape(np.shape(f))
 
 
+def _multipliers(omega, track):
+    """The four Floquet multipliers at ``omega`` (rad/s, 1-D), sorted by |z|, with the free waves
+    (:func:`_free_waves`) and the support stiffness K_s: the roots of the quartic of
+    :func:`floquet_multipliers` as the eigenvalues of its companion matrices, all at once."""
+    waves = _free_waves(omega, track)
+    c, _, e = waves
+    K = support_stiffness(omega, track)
+    q1, q2 = (np.stack([-e[:, j], 1 + e[:, j] ** 2, -e[:, j]], axis=-1) for j in (0, 1))
+    quartic = np.zeros((len(omega), 5), dtype=complex)
+    for i in range(3):
+        quartic[:, i:i + 3] += q1[:, i:i + 1] * q2
+    w = c * (1 - e**2)
+    quartic[:, 1:4] += K[:, None] * (w[:, :1] * q2 + w[:, 1:] * q1)
+    companion = np.zeros((len(omega), 4, 4), dtype=complex)
+    companion[:, 0, :] = -quartic[:, 1:] / quartic[:, :1]
+    companion[:, 1, 0] = companion[:, 2, 1] = companion[:, 3, 2] = 1.0
+    z = np.linalg.eigvals(companion)
+    return np.take_along_axis(z, np.argsort(np.abs(z), axis=-1), axis=-1), waves, K
+
+
 def floquet_multipliers(f, track):
     """The four Floquet multipliers z = exp(i mu d) of the free waves of the periodic rail at
     ``f`` (Hz): roots of ``Q_1 Q_2 + K_s z [c_1 (1 - e_1^2) Q_2 + c_2 (1 - e_2^2) Q_1] = 0``
     (module docstring), sorted by |z|. Returns shape f.shape + (4,)."""
-    omega = TWO_PI * np.atleast_1d(np.asarray(f, dtype=np.float64))
-    c, _, e = _free_waves(omega, track)
-    K = support_stiffness(omega, track)
-    out = np.empty(omega.shape + (4,), dtype=complex)
-    for i in range(len(omega)):
-        q1, q2 = ([-ej, 1 + ej**2, -ej] for ej in e[i])
-        z_q1, z_q2 = ([0.0, *qj, 0.0] for qj in (q1, q2))
-        w1, w2 = c[i] * (1 - e[i] ** 2)
-        roots = np.roots(np.polymul(q1, q2) + K[i] * (w1 * np.asarray(z_q2) + w2 * np.asarray(z_q1)))
-        out[i] = roots[np.argsort(np.abs(roots))]
-    return out.reshape(np.shape(f) + (4,))
+    omega = TWO_PI * np.atleast_1d(np.asarray(f, dtype=np.float64)).ravel()
+    return _multipliers(omega, track)[0].reshape(np.shape(f) + (4,))
+
+
+def point_receptance(f, track, position="sleeper"):
+    """Point receptance (m/N) above a support (``position="sleeper"``, x0 = 0) or at mid-span
+    (``"midspan"``, x0 = d / 2) at ``f`` (Hz), in closed form: the zone average of the module
+    docstring is the contour integral of ``w_z dz / (2 pi i z)`` around |z| = 1, whose poles
+    inside are the two inner Floquet multipliers z_m (|z_m| < 1, :func:`floquet_multipliers`),
+    the free waves' e_j, and z = 0. With ``S_0 = S(0, z)`` and ``S_0'`` its derivative::
+
+        S_0'(z) = sum_j c_j [e_j / (1 - z e_j)^2 - e_j / (z - e_j)^2],
+        sleeper:  alpha = - sum_m 1 / (K_s^2 z_m S_0'(z_m)),
+        mid-span: alpha = - sum_m U(z_m)^2 / S_0'(z_m),
+                  U(z) = S(d/2, z) / z = sum_j c_j a_j [1 / (z - e_j) + 1 / (1 - z e_j)],
+
+    ``a_j = exp(i k_j d / 2)``. Above a support w_z = S_0 / (1 + K_s S_0) is finite at e_j and 0;
+    at mid-span S(-d/2, z) = U(z) and the residues at e_j, -c_j, cancel the free rail's
+    ``G(0) = sum_j c_j``. Equal to :func:`discrete_receptance` (its trapezoid rule converges to it)."""
+    omega = TWO_PI * np.atleast_1d(np.asarray(f, dtype=np.float64)).ravel()
+    z, (c, k, e), K = _multipliers(omega, track)
+    z = z[:, :2, None]
+    c, k, e = c[:, None, :], k[:, None, :], e[:, None, :]
+    slope = np.sum(c * (e / (1 - z * e) ** 2 - e / (z - e) ** 2), axis=-1)
+    if position == "sleeper":
+        alpha = np.sum(-1.0 / (K[:, None] ** 2 * z[..., 0] * slope), axis=-1)
+    else:
+        u = np.sum(c * np.exp(0.5j * k * track.sleeper_spacing) * (1 / (z - e) + 1 / (1 - z * e)), axis=-1)
+        alpha = np.sum(-(u**2) / slope, axis=-1)
+    return alpha.reshape(np.shape(f))
 
 
 def discrete_decay_rate(f, track):
