@@ -12,12 +12,12 @@ one complex state ``q_k`` per term, ``q_k' = p_k q_k + r_k u``, output ``y = 2 R
 (a real pole p_k carries half its residue, r_k / 2). Every p_k has Re p_k < 0: it is stable
 by construction.
 
-Passive where the grid reaches: a receptance is passive where its mobility ``s H(s)`` is positive
-real, ``Im H(i omega) <= 0`` for omega > 0. With the poles fixed, H is linear in the residues,
-so :func:`passive_residues` fits them by least squares and, where ``Im H > 0`` somewhere on a
-grid from 0.001 Hz to 10 MHz, again with ``Im H = 0`` imposed at the worst points, until the
-grid holds no violation or the rounds are spent. Passivity is thus enforced, not guaranteed:
-:meth:`ModalForm.passivity_margin` states what is left (docs/track.md, "State space").
+Passive: a receptance is passive where its mobility ``s H(s)`` is positive real,
+``Im H(i omega) <= 0`` for omega > 0, decided exactly by :meth:`ModalForm.is_passive`. With the
+poles fixed, H is linear in the residues, so :func:`passive_residues` fits them by least squares
+and then, where the exact test finds ``Im H > 0``, perturbs them by the least change of the fit
+that removes the violations (residue perturbation), round after round until the form is passive
+or the rounds are spent.
 
 Vector fitting (Gustavsen & Semlyen 1999, "Rational approximation of frequency domain responses
 by vector fitting", IEEE Trans. Power Delivery 14) relocates the poles: starting poles spread
