@@ -44,7 +44,7 @@ LINES = np.zeros((1, P.n_points))
 API_CASES = [
     (lambda: Params(H=float("nan")), "H"),
     (lambda: Params(dx="5e-6"), "dx"),
-    (lambda: read_params({"n_real": 0}), "n_real = 0 is not allowed: the number of realizations"),
+    (lambda: read_params({"n_real": 0}), "n_real = 0 is not allowed: it must be a positive integer"),
     (lambda: Params().replace(n_real=8), r"unknown parameter\(s\) \['n_real'\]"),  # the count is the run's
     (lambda: rough_lines(P, -1, 2), "seed"),
     (lambda: rough_lines(P, 0, 0), "realizations"),
