@@ -12,12 +12,12 @@ one complex state ``q_k`` per term, ``q_k' = p_k q_k + r_k u``, output ``y = 2 R
 (a real pole p_k carries half its residue, r_k / 2). Every p_k has Re p_k < 0: it is stable
 by construction.
 
-Passive where the grid reaches: a receptance is passive where its mobility ``s H(s)`` is positive
-real, ``Im H(i omega) <= 0`` for omega > 0. With the poles fixed, H is linear in the residues,
-so :func:`passive_residues` fits them by least squares and, where ``Im H > 0`` somewhere on a
-grid from 0.001 Hz to 10 MHz, again with ``Im H = 0`` imposed at the worst points, until the
-grid holds no violation or the rounds are spent. Passivity is thus enforced, not guaranteed:
-:meth:`ModalForm.passivity_margin` states what is left (docs/track.md, "State space").
+Passive: a receptance is passive where its mobility ``s H(s)`` is positive real,
+``Im H(i omega) <= 0`` for omega > 0, decided exactly by :meth:`ModalForm.is_passive`. With the
+poles fixed, H is linear in the residues, so :func:`passive_residues` fits them by least squares
+and then, where the exact test finds ``Im H > 0``, perturbs them by the least change of the fit
+that removes the violations (residue perturbation), round after round until the form is passive
+or the rounds are spent.
 
 Vector fitting (Gustavsen & Semlyen 1999, "Rational approximation of frequency domain responses
 by vector fitting", IEEE Trans. Power Delivery 14) relocates the poles: starting poles spread
@@ -40,14 +40,18 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
+import scipy.optimize
 
 from mdroll.physics import TWO_PI
 
-#: Angular frequencies (rad/s) where :func:`passive_residues` constrains Im H <= 0 first: 0.01 Hz
-#: to 10 MHz, 100 a decade.
-PASSIVITY_GRID = TWO_PI * np.geomspace(1e-3, 1e7, 1001)
-#: Largest ``Im H / |H|`` that :func:`passive_residues` leaves: rounding, not a loss of passivity.
+#: Largest ``Im H / |H|`` taken as rounding, not a loss of passivity (:meth:`ModalForm.is_passive`);
 PASSIVITY_TOLERANCE = 1e-10
+#: ``-Im H / |H|`` that :func:`passive_residues` asks for where it constrains: a margin that stops
+#: its rounds from closing in on a violation band without ever reaching it.
+PASSIVITY_MARGIN = 1e-6
+#: Weight of the residues' change itself (scaled unknowns) beside the fit's change in
+#: :func:`passive_residues`: it bounds the change in the directions the fitted band does not see.
+PERTURBATION_REGULARIZATION = 1e-8
 #: Largest ``|Re s| / |s|`` of a zero of ``H(s) - H(-s)`` taken as a candidate crossing of the
 #: imaginary axis (:meth:`ModalForm.crossings`): generous, since the pencil's eigenvalues carry the
 #: rounding of a fit's cancelling residues, and a candidate that is none only adds a probe to
@@ -204,38 +208,8 @@ def _relocate(s, h, weight, poles):
     return np.sort_complex(zeros[zeros.imag >= 0])
 
 
-def passive_residues(s, h, weight, poles, rounds: int):
-    """Residues (module docstring's convention) of the least-squares fit of h(s) at the fixed
-    ``poles`` (stable, Im >= 0), made passive: where ``Im H / |H| > PASSIVITY_TOLERANCE`` on
-    :data:`PASSIVITY_GRID` (and three points between each two), the fit is repeated with
-    ``Im H = 0`` imposed at the largest violation of each interval of violations, until none is
-    left or ``rounds`` times: what remains is stated by :meth:`ModalForm.passivity_margin`. Each equality-constrained least
-    squares is solved in the constraints' null space (an SVD), which stays well conditioned
-    where the partial fractions' basis is not."""
-    basis = _bases(s, poles) * weight[:, None]
-    A = np.concatenate([basis.real, basis.imag])
-    b = np.concatenate([(h * weight).real, (h * weight).imag])
-    scale = np.linalg.norm(A, axis=0)
-    A = A / scale
-    dense = np.geomspace(PASSIVITY_GRID[0], PASSIVITY_GRID[-1], 4 * len(PASSIVITY_GRID)) / TWO_PI
-    dense_basis = _bases(1j * TWO_PI * dense, poles) / scale
-    rows = dense_basis.imag / np.linalg.norm(dense_basis.imag, axis=1, keepdims=True)
-    active = np.zeros(0, dtype=int)
-    x = np.linalg.lstsq(A, b, rcond=None)[0]
-    for _ in range(rounds):
-        response = dense_basis @ x
-        violation = response.imag / np.abs(response)
-        bad = violation > PASSIVITY_TOLERANCE
-        if not bad.any():
-            break
-        # the largest violation of each run of violated points
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], bad.astype(int), [0]])))
-        peaks = [start + int(np.argmax(violation[start:stop])) for start, stop in zip(edges[::2], edges[1::2])]
-        active = np.union1d(active, peaks)
-        _, sv, vt = np.linalg.svd(rows[active])
-        null = vt[np.sum(sv > 1e-12 * sv[0]):].T
-        x = null @ np.linalg.lstsq(A @ null, b, rcond=None)[0]
-    x = x / scale
+def _residues(poles, x):
+    """The residues (module docstring's convention) of the real unknowns x of :func:`_bases`."""
     residues, i = [], 0
     for p in poles:
         if p.imag == 0:
@@ -247,16 +221,83 @@ def passive_residues(s, h, weight, poles, rounds: int):
     return np.array(residues, dtype=complex)
 
 
-def vector_fit(f, h, order: int, f_lo: float, f_hi: float, iterations: int = 20, passivity_rounds: int = 0):
+def _violations(form: ModalForm) -> np.ndarray:
+    """Frequencies (Hz) where ``Im H > 0``: the local maxima of ``Im H / |H|`` on 200 points of
+    each interval between :meth:`ModalForm.crossings` that violates and every tenth point where
+    it does, and for an unbounded last
+    interval also 2, 10, 100 and 1000 times its start."""
+    edges = np.concatenate([[0.0], form.crossings(), [np.inf]])
+    points = []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        start = lo if lo > 0 else (1e-3 * hi if np.isfinite(hi) else 1e-3)
+        grid = np.geomspace(start, hi if np.isfinite(hi) else 1e3 * max(lo, 1e4), 200)[1:-1]
+        h = form.response(grid)
+        v = np.concatenate([[-np.inf], h.imag / np.abs(h), [-np.inf]])
+        bad = v[1:-1] > 0
+        peaks = bad & (v[1:-1] >= v[:-2]) & (v[1:-1] >= v[2:])
+        points += list(grid[peaks]) + list(grid[bad][::10])
+        if peaks.any() and not np.isfinite(hi):
+            points += list(lo * np.array([2.0, 10.0, 100.0, 1000.0]))
+    return np.array(points)
+
+
+def _least_distance(g, h):
+    """The shortest y with ``g y >= h`` (Lawson & Hanson, *Solving Least Squares Problems*, 1974,
+    ch. 23: the least-distance program through non-negative least squares)."""
+    e = np.vstack([g.T, h[None, :]])
+    f = np.zeros(len(e))
+    f[-1] = 1.0
+    u = scipy.optimize.nnls(e, f, maxiter=50 * len(e))[0]
+    r = e @ u - f
+    return -r[:-1] / r[-1]
+
+
+def passive_residues(s, h, weight, poles, rounds: int):
+    """Residues (module docstring's convention) of the least-squares fit of h(s) at the fixed
+    ``poles`` (stable, Im >= 0), made passive by residue perturbation (Grivet-Talocia &
+    Gustavsen, *Passive Macromodeling*, 2016, ch. 10): Im H is linear in the residues, so each
+    round adds the constraints ``Im H <= -PASSIVITY_MARGIN |H|`` at the :func:`_violations`
+    of the current form (and ``Im H <= 0`` as omega goes to infinity, the sum of the real parts
+    of the residues) and takes the least change of the residues in the weighted fit's norm (plus
+    a Tikhonov term of :data:`PERTURBATION_REGULARIZATION` in the scaled unknowns) that meets
+    all constraints so far, until :meth:`ModalForm.is_passive` holds or ``rounds`` are spent
+    (0: the plain least squares)."""
+    basis = _bases(s, poles) * weight[:, None]
+    a = np.concatenate([basis.real, basis.imag])
+    scale = np.linalg.norm(a, axis=0)
+    a = a / scale
+    x0 = np.linalg.lstsq(a, np.concatenate([(h * weight).real, (h * weight).imag]), rcond=None)[0]
+    form = ModalForm(poles, _residues(poles, x0 / scale))
+    r_inv = np.linalg.inv(np.linalg.qr(np.vstack([a, PERTURBATION_REGULARIZATION * np.eye(len(x0))]), mode="r"))
+    # -omega Im H as omega -> oo: 2 Re r_k of each pair, the unknown itself of a real pole
+    at_infinity = np.concatenate([[1.0] if p.imag == 0 else [2.0, 0.0] for p in poles]) / scale
+    points = np.zeros(0)
+    for _ in range(rounds):
+        if form.is_passive():
+            break
+        points = np.union1d(points, _violations(form))
+        rows = np.vstack([_bases(1j * TWO_PI * points, poles).imag / scale, -at_infinity])
+        bound = PASSIVITY_MARGIN * np.abs(np.append(form.response(points), 0.0))
+        # rows (x0 + r_inv y) <= -bound, i.e. (-rows r_inv) y >= bound + rows x0
+        g = -rows @ r_inv
+        norm = np.linalg.norm(g, axis=1)
+        y = _least_distance(g / norm[:, None], (bound + rows @ x0) / norm)
+        form = ModalForm(poles, _residues(poles, (x0 + r_inv @ y) / scale))
+    return form.residues
+
+
+def vector_fit(f, h, order: int, f_lo: float, f_hi: float, iterations: int = 20, passivity_rounds: int = 0,
+               weight=None):
     """A stable :class:`ModalForm` of ``order`` pole pairs fitted to the receptance
-    ``h`` (m/N, complex) sampled at ``f`` (Hz): vector fitting with relative weights 1/|h|,
-    starting poles log-spaced over [f_lo, f_hi] Hz with damping 1 %, then
-    :func:`passive_residues` with ``passivity_rounds`` rounds of constraints (0: the plain
-    least squares; each round costs accuracy, docs/track.md, "State space"). ``error_db`` is the largest :func:`error_db` over the samples."""
+    ``h`` (m/N, complex) sampled at ``f`` (Hz): vector fitting with relative weights 1/|h|
+    (times ``weight``, an array like f, if given), starting poles log-spaced over [f_lo, f_hi] Hz
+    with damping 1 %, then :func:`passive_residues` with ``passivity_rounds`` rounds of
+    constraints (0: the plain least squares). ``error_db`` is the largest :func:`error_db` over
+    the samples."""
     f = np.asarray(f, dtype=np.float64)
     h = np.asarray(h, dtype=complex)
     s = 1j * TWO_PI * f
-    weight = 1.0 / np.abs(h)
+    weight = (1.0 if weight is None else np.asarray(weight, dtype=np.float64)) / np.abs(h)
     w = TWO_PI * np.geomspace(f_lo, f_hi, order)
     poles = -0.01 * w + 1j * w
     for _ in range(iterations):

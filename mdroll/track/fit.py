@@ -1,5 +1,6 @@
-"""The rail's point receptance as a stable, passive modal state space (:mod:`mdroll.statespace`)
-for the coupled time-domain dynamics: a vector fit over :data:`FIT_BAND` with its error stated."""
+"""The rail's point receptance as a stable modal state space (:mod:`mdroll.statespace`) for the
+coupled time-domain dynamics: a vector fit over :data:`FIT_BAND` with its error stated, and on
+request made passive by residue perturbation."""
 
 from __future__ import annotations
 
@@ -20,18 +21,29 @@ FIT_SAMPLES = 600
 CHECK_BAND = (50.0, 5000.0)
 FIT_ORDER = 64
 FIT_ITERATIONS = 6
+#: The passive fit's samples reach down to this frequency (Hz), weighted by :data:`PASSIVE_LOW_WEIGHT`
+#: below :data:`FIT_BAND`, so that the fit follows the passive receptance there, and its rounds of
+#: residue perturbation (:func:`mdroll.statespace.passive_residues`).
+PASSIVE_LOW_FREQUENCY = 5.0
+PASSIVE_LOW_WEIGHT = 0.02
+PASSIVITY_ROUNDS = 30
 
 
 @functools.lru_cache(maxsize=16)
-def rail_modal_form(track, position: str = "sleeper") -> ModalForm:
+def rail_modal_form(track, position: str = "sleeper", passive: bool = False) -> ModalForm:
     """The modal form of the rail's point receptance (:func:`~mdroll.track.receptance`) where
     the wheel stands; its ``error_db`` is the largest complex error (dB,
     :func:`mdroll.statespace.error_db`) over :data:`CHECK_BAND` on a grid of 1000 frequencies.
-    The rigid track has none (an empty form)."""
+    ``passive``: fitted from :data:`PASSIVE_LOW_FREQUENCY` and made passive
+    (:meth:`~mdroll.statespace.ModalForm.is_passive`), at a larger error (docs/track.md,
+    "State space"). The rigid track has none (an empty form)."""
     if track.support == "rigid":
         return ModalForm(np.zeros(0, dtype=complex), np.zeros(0, dtype=complex))
-    f = np.geomspace(*FIT_BAND, FIT_SAMPLES)
-    form = vector_fit(f, receptance(track, f, position), FIT_ORDER, *FIT_BAND, iterations=FIT_ITERATIONS)
+    low = PASSIVE_LOW_FREQUENCY if passive else FIT_BAND[0]
+    f = np.geomspace(low, FIT_BAND[1], FIT_SAMPLES + round(100 * np.log10(FIT_BAND[0] / low)))
+    form = vector_fit(f, receptance(track, f, position), FIT_ORDER, *FIT_BAND, iterations=FIT_ITERATIONS,
+                      passivity_rounds=PASSIVITY_ROUNDS if passive else 0,
+                      weight=np.where(f < FIT_BAND[0], PASSIVE_LOW_WEIGHT, 1.0))
     check = np.geomspace(*CHECK_BAND, 1000)
     error = float(np.max(error_db(form.response(check), receptance(track, check, position))))
     return ModalForm(form.poles, form.residues, error)
