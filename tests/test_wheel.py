@@ -1,10 +1,12 @@
 """mdroll.wheel: the rigid wheel is today's mass; the modal wheel's receptance against its modes."""
 
+import json
 import math
 
 import numpy as np
 import pytest
 
+from mdroll import Params, run_ensemble
 from mdroll.errors import ParameterError
 from mdroll.wheel import PRESETS, STANDARD_920_MODES, Wheel
 
@@ -66,3 +68,21 @@ def test_settings_apply_the_preset_then_the_keys():
         Wheel.from_settings({"wheel.mass": "heavy"})
     with pytest.raises(ParameterError, match="wheel.suspension_loss = True .* not a bool"):
         Wheel(suspension_loss=True)
+
+
+def test_rigid_wheel_mass_is_the_runs_mass(cli, one_line_error, tmp_path):
+    """``--set wheel.mass`` of the rigid wheel is the run's m: the same run as ``--set m``; both
+    given and different are refused, and so is the API's rigid wheel of another mass."""
+    common = ("run", "--mode", "coupled", "--set", "L=0.03", "--set", "dx=2e-5", "--realizations", "1",
+              "--device", "cpu", "--no-progress")
+    for name, setting in (("wheel", "wheel.mass=600"), ("m", "m=600")):
+        proc = cli(*common, "--set", setting, "--out", str(tmp_path / name))
+        assert proc.returncode == 0, proc.stderr
+        assert json.loads((tmp_path / name / "summary.json").read_text())["params"]["m"] == 600.0
+    with np.load(tmp_path / "wheel" / "spectra.npz") as by_wheel, np.load(tmp_path / "m" / "spectra.npz") as by_m:
+        np.testing.assert_array_equal(by_wheel["accel_psd"], by_m["accel_psd"])
+    one_line_error(cli(*common, "--set", "m=500", "--set", "wheel.mass=600", "--out", str(tmp_path / "bad")),
+                   "wheel.mass = 600 kg is not allowed with m = 500 kg")
+    with pytest.raises(ParameterError, match="wheel.mass = 600 kg"):
+        run_ensemble(Params(L=0.03, dx=2e-5), realizations=1, mode="coupled", wheel=Wheel(mass=600.0), device="cpu",
+                     progress=False)
