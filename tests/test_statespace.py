@@ -125,6 +125,15 @@ def test_rail_passive_fit_is_passive_and_close():
     assert np.max(error_db(form.response(f), receptance(track, f, "sleeper"))) < 0.55
 
 
+def test_rail_fit_left_not_passive_is_refused(monkeypatch):
+    # no rounds of enforcement: the plain fit, which the exact test finds not passive
+    import mdroll.track.fit as fit
+
+    monkeypatch.setattr(fit, "PASSIVITY_ROUNDS", 0)
+    with pytest.raises(ParameterError, match="could not be fitted passive in 0 rounds"):
+        rail_modal_form(Track(pad_loss=0.31))
+
+
 def coupled_loop_force(form, params, dt, seconds):
     """The force (N, less F_N) of the linearized coupled loop as the run steps it, by a plain
     recursion: the rigid wheel's semi-implicit Euler step, the contact spring k_c on the

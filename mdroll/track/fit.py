@@ -13,6 +13,7 @@ import functools
 
 import numpy as np
 
+from mdroll.errors import ParameterError
 from mdroll.statespace import ModalForm, error_db, vector_fit
 
 from .response import receptance
@@ -42,7 +43,9 @@ def rail_modal_form(track, position: str = "sleeper", passive: bool = True) -> M
     ``passive`` (the default, the form the coupled run steps): fitted from
     :data:`PASSIVE_LOW_FREQUENCY` and made passive
     (:meth:`~mdroll.statespace.ModalForm.is_passive`), at a larger error than the plain fit
-    (``passive=False``, module docstring). The rigid track has none (an empty form)."""
+    (``passive=False``, module docstring); a track whose fit the rounds of
+    :data:`PASSIVITY_ROUNDS` leave not passive is refused (ParameterError: its coupled loop could
+    grow without bound). The rigid track has none (an empty form)."""
     if track.support == "rigid":
         return ModalForm(np.zeros(0, dtype=complex), np.zeros(0, dtype=complex))
     low = PASSIVE_LOW_FREQUENCY if passive else FIT_BAND[0]
@@ -50,6 +53,10 @@ def rail_modal_form(track, position: str = "sleeper", passive: bool = True) -> M
     form = vector_fit(f, receptance(track, f, position), FIT_ORDER, *FIT_BAND, iterations=FIT_ITERATIONS,
                       passivity_rounds=PASSIVITY_ROUNDS if passive else 0,
                       weight=np.where(f < FIT_BAND[0], PASSIVE_LOW_WEIGHT, 1.0))
+    if passive and not form.is_passive():
+        raise ParameterError(f"track = {track!r} is not allowed in a coupled run: its rail receptance "
+                             f"({position}) could not be fitted passive in {PASSIVITY_ROUNDS} rounds, and "
+                             "its loop with the wheel could grow without bound")
     check = np.geomspace(*CHECK_BAND, 1000)
     error = float(np.max(error_db(form.response(check), receptance(track, check, position))))
     return ModalForm(form.poles, form.residues, error)
