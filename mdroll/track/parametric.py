@@ -48,7 +48,7 @@ from .periodic import point_receptance
 #: interpolation between them) and :func:`harmonics` (their discrete Fourier transform).
 BAY_POINTS = 1024
 #: Bays added one at a time at most to the semi-infinite rail of :func:`semi_infinite_stiffness`
-#: (it stops when the stiffness no longer changes: after 20-60 for the presets).
+#: (it stops when the stiffness no longer changes: after 19-22 for the presets).
 MAX_BAYS = 10_000
 #: Reference of roughness levels: 1 um (dB re 1 um).
 ROUGHNESS_REFERENCE = 1e-6
@@ -72,7 +72,8 @@ def element_stiffness(length, track):
 
         E I / ((1 + Phi) L^3) [[12, 6L, -12, 6L], [6L, (4 + Phi) L^2, -6L, (2 - Phi) L^2],
                                [-12, -6L, 12, -6L], [6L, (2 - Phi) L^2, -6L, (4 + Phi) L^2]]
-    """
+
+    exact for loads at the nodes (Przemieniecki 1968, ch. 5)."""
     L = np.asarray(length, dtype=np.float64)
     EI = track.rail_EI
     phi = 12.0 * EI / (track.rail_shear_stiffness * L**2)
