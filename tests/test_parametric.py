@@ -107,6 +107,15 @@ def test_parametric_needs_discrete_support():
         quasi_static_frequency(Track())
 
 
+def test_the_command_line_refuses_it_off_discrete_support(capsys, tmp_path):
+    from mdroll import cli
+
+    args = ["run", "--mode", "coupled", "--set", "track.parametric=true", "--set", "L=0.05", "--out", str(tmp_path)]
+    assert cli.main(args) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and "track.parametric = true is not allowed with track.support = 'continuous'" in err[0]
+
+
 def _rail_as_one_mode(track, mass=300.0, damping=0.3):
     """The rail above a support as one damped mode of the static stiffness and ``mass`` (kg): a
     state space as the run steps it, without the rail fit's cost."""
