@@ -12,8 +12,8 @@ from mdroll.physics import TWO_PI
 from mdroll.statespace import ModalForm
 from mdroll.track import Track
 from mdroll.track.interaction import contact_filter
-from mdroll.track.parametric import (equivalent_roughness, harmonics, quasi_static_frequency, roughness_levels,
-                                     static_receptance)
+from mdroll.track.parametric import (equivalent_roughness, harmonics, moving_load_deflection, quasi_static_frequency,
+                                     roughness_levels, static_receptance)
 from mdroll.track.periodic import discrete_receptance, point_receptance
 
 SOFT = Track.preset("ballasted-soft-pad")
@@ -69,6 +69,16 @@ def test_static_receptance_is_the_periodic_model_at_low_frequency():
     np.testing.assert_allclose(dynamic_middle - dynamic_above, middle - above, rtol=1e-3)
     np.testing.assert_allclose(dynamic_quarter - dynamic_above, quarter - above, rtol=1e-3)
     assert middle > quarter > above  # softer away from the support
+
+
+def test_a_slow_moving_load_rides_on_the_static_deflection():
+    # the exact steady state of the moving load on the periodic model (losses 1e-3) at 0.5 m/s
+    quiet = SOFT.with_values(pad_loss=1e-3, ballast_loss=1e-3, rail_loss=1e-3)
+    d = SOFT.sleeper_spacing
+    static = static_receptance(SOFT, [0.0, d / 2])
+    moving = moving_load_deflection(quiet, 1.0, 0.5, [0.0, d / 2])
+    np.testing.assert_allclose(moving, static, rtol=1e-4)
+    np.testing.assert_allclose(moving[1] - moving[0], static[1] - static[0], rtol=1e-3)
 
 
 def test_equivalent_roughness_is_lines_at_the_sleeper_passing_frequency():

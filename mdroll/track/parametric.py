@@ -42,7 +42,8 @@ import numpy as np
 from mdroll.errors import ParameterError
 from mdroll.roughness.bands import band_centres, wavelength_band_edges_q
 
-from .periodic import point_receptance
+from .beam import support_stiffness
+from .periodic import free_waves, lattice_sum, point_receptance
 
 #: Samples of alpha_0 over one bay for :func:`equivalent_roughness` (periodic linear
 #: interpolation between them) and :func:`harmonics` (their discrete Fourier transform).
@@ -55,6 +56,12 @@ ROUGHNESS_REFERENCE = 1e-6
 #: The frequency (Hz) of the low-frequency value of :func:`quasi_static_frequency`, and its scan.
 LOW_FREQUENCY = 1.0
 SCAN = (1.0, 5000.0, 800)
+#: :func:`moving_load_deflection`'s quadrature: wavenumbers (midpoint rule) up to this many
+#: times 2 pi / d, their count, source positions over a bay (trapezoid rule) and wavenumbers a block.
+MOVING_BAYS = 120
+MOVING_WAVENUMBERS = 6000
+MOVING_SOURCES = 256
+MOVING_BLOCK = 400
 
 
 def check_discrete(track) -> None:
@@ -203,3 +210,43 @@ def quasi_static_frequency(track, tolerance_db: float = 1.0) -> float:
     low = abs(point_receptance(LOW_FREQUENCY, track, "midspan") - point_receptance(LOW_FREQUENCY, track, "sleeper"))
     off = np.abs(20.0 * np.log10(spread / low)) > tolerance_db
     return float(f[np.argmax(off)]) if off.any() else float(f[-1])
+
+
+def moving_load_deflection(track, load: float, speed: float, x) -> np.ndarray:
+    """The rail's deflection (m) under a constant load ``load`` (N) moving at ``speed`` (m/s) when
+    the load is at ``x`` (m, shape (P,)), in the steady state, exact for the periodically supported
+    rail of :mod:`mdroll.track.periodic` with its dynamics and losses (no quasi-static assumption).
+
+    The load ``F0 delta(x - v t)`` is, at each frequency omega, the force density
+    ``(F0 / v) exp(-i k xi)``, k = omega / v; gathered by bays it is the Floquet loads
+    ``z^n`` at ``xi + n d``, ``z = exp(-i k d)``, whose response ``w_z(x; xi)`` is the periodic
+    model's. Under the load (x = v t)::
+
+        w(x) = (F0 / pi) Re integral_0^inf dk exp(i k x) integral_0^d dxi exp(-i k xi) w_z(x; xi, omega = v k)
+
+    (k < 0 gives the complex conjugate). Quadrature: the midpoint rule in k up to
+    :data:`MOVING_BAYS` times 2 pi / d with :data:`MOVING_WAVENUMBERS` points, the trapezoid rule
+    over :data:`MOVING_SOURCES` intervals of xi. As the speed tends to zero it tends to
+    ``F0 alpha_0(x)`` with the receptance's loss factors (:func:`static_receptance` without them)."""
+    check_discrete(track)
+    d = track.sleeper_spacing
+    x = np.atleast_1d(np.asarray(x, dtype=np.float64))
+    k_top = MOVING_BAYS * 2.0 * np.pi / d
+    dk = k_top / MOVING_WAVENUMBERS
+    xi = np.linspace(0.0, d, MOVING_SOURCES + 1)
+    weight = np.full(xi.shape, d / MOVING_SOURCES)
+    weight[[0, -1]] *= 0.5
+    out = np.zeros(x.shape)
+    for start in range(0, MOVING_WAVENUMBERS, MOVING_BLOCK):
+        k = (np.arange(start, min(start + MOVING_BLOCK, MOVING_WAVENUMBERS)) + 0.5) * dk
+        omega = speed * k
+        waves = free_waves(omega, track)
+        K = support_stiffness(omega, track)[:, None]
+        z = np.broadcast_to(np.exp(-1j * k * d)[:, None], (k.size, xi.size))
+        at_support = lattice_sum(0.0, z[:, :1], waves, d)
+        phase = np.exp(-1j * k[:, None] * xi) * weight
+        from_supports = K * lattice_sum(-xi, z, waves, d) / (1.0 + K * at_support)
+        for i, position in enumerate(x):
+            response = lattice_sum(position - xi, z, waves, d) - from_supports * lattice_sum(position, z[:, :1], waves, d)
+            out[i] += np.sum(np.exp(1j * k * position) * np.sum(phase * response, axis=1)).real
+    return load * dk / np.pi * out
