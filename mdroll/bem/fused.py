@@ -40,8 +40,10 @@ CELLS_PER_BLOCK = 512
 SUMS = 4
 #: Columns of the row spectra per block of the column transform.
 COLUMNS = 2
+#: Threads per block of the column transform (a radix-8 pass of 512 rows: 64 a column).
+COLUMN_THREADS = 128
 #: Largest window (cells across) on CUDA: the column transform's shared memory.
-MAX_CELLS = 2048
+MAX_CELLS = 1024
 
 TARGET, APPROACH, G_OLD, DELTA, ACTIVE, ITERATIONS, RESIDUAL, COUNT, G, RATIO, TAU, SCALE, TOL, MAX_ITER, \
     CELL_AREA, FORCE, AREA, NEXT, LOST, POSITION, STEPS = range(21)
@@ -213,52 +215,91 @@ extern "C" __global__ void rescale(const double* U, double* P, double* st, doubl
 }
 
 __device__ double2 times(double2 a, double2 b) { return make_double2(a.x * b.x - a.y * b.y, a.x * b.y + a.y * b.x); }
+__device__ double2 plus(double2 a, double2 b) { return make_double2(a.x + b.x, a.y + b.y); }
+__device__ double2 minus(double2 a, double2 b) { return make_double2(a.x - b.x, a.y - b.y); }
+// a times i sign
+__device__ double2 turn(double2 a, double sign) { return make_double2(-sign * a.y, sign * a.x); }
+
+// the R-point DFT of v in registers, natural order in and out: exp(sign 2 pi i r k / R)
+template <int R> __device__ void dft(double2* v, double sign);
+template <> __device__ void dft<2>(double2* v, double sign) {
+    const double2 a = v[0];
+    v[0] = plus(a, v[1]); v[1] = minus(a, v[1]);
+}
+template <> __device__ void dft<4>(double2* v, double sign) {
+    const double2 a0 = plus(v[0], v[2]), a1 = minus(v[0], v[2]), a2 = plus(v[1], v[3]),
+                  a3 = turn(minus(v[1], v[3]), sign);
+    v[0] = plus(a0, a2); v[1] = plus(a1, a3); v[2] = minus(a0, a2); v[3] = minus(a1, a3);
+}
+template <> __device__ void dft<8>(double2* v, double sign) {
+    const double h = 0.70710678118654752440;
+    const double2 a0 = plus(v[0], v[4]), a1 = minus(v[0], v[4]), a2 = plus(v[2], v[6]), a3 = minus(v[2], v[6]),
+                  a4 = plus(v[1], v[5]), a5 = minus(v[1], v[5]), a6 = plus(v[3], v[7]), a7 = minus(v[3], v[7]);
+    const double2 b0 = plus(a0, a2), b1 = plus(a1, turn(a3, sign)), b2 = minus(a0, a2),
+                  b3 = minus(a1, turn(a3, sign)), b4 = plus(a4, a6), b5 = plus(a5, turn(a7, sign)),
+                  b6 = minus(a4, a6), b7 = minus(a5, turn(a7, sign));
+    const double2 t1 = times(make_double2(h, sign * h), b5), t2 = turn(b6, sign),
+                  t3 = times(make_double2(-h, sign * h), b7);
+    v[0] = plus(b0, b4); v[1] = plus(b1, t1); v[2] = plus(b2, t2); v[3] = plus(b3, t3);
+    v[4] = minus(b0, b4); v[5] = minus(b1, t1); v[6] = minus(b2, t2); v[7] = minus(b3, t3);
+}
+
+// one Stockham pass of radix R over the block's columns (element i of column c at i * COLUMNS + c),
+// from a to b: sub-transforms of length Ns become R Ns long; twiddle[k] = exp(-2 pi i k / M), k < M
+template <int R>
+__device__ void pass(const double2* a, double2* b, const double2* twiddle, int M, int Ns, double sign) {
+    const int T = M / R, step = M / (Ns * R);
+    for (int u = threadIdx.x; u < COLUMNS * T; u += blockDim.x) {
+        const int c = u % COLUMNS, j = u / COLUMNS, k = j % Ns;
+        double2 v[R];
+#pragma unroll
+        for (int r = 0; r < R; ++r) {
+            const double2 w = twiddle[k * r * step];
+            v[r] = times(a[(j + r * T) * COLUMNS + c], make_double2(w.x, sign * -w.y));
+        }
+        dft<R>(v, sign);
+        const int base = (j / Ns) * Ns * R + k;
+#pragma unroll
+        for (int r = 0; r < R; ++r) b[(base + r * Ns) * COLUMNS + c] = v[r];
+    }
+}
+
+// the block's columns in a transformed (b the scratch buffer): exp(sign 2 pi i ...); the buffer that
+// holds the result, in natural order
+__device__ double2* transform(double2* a, double2* b, const double2* twiddle, int bits, double sign) {
+    for (int Ns = 1, left = bits; left > 0;) {
+        __syncthreads();
+        if (left >= 3) { pass<8>(a, b, twiddle, 1 << bits, Ns, sign); Ns *= 8; left -= 3; }
+        else if (left == 2) { pass<4>(a, b, twiddle, 1 << bits, Ns, sign); Ns *= 4; left -= 2; }
+        else { pass<2>(a, b, twiddle, 1 << bits, Ns, sign); Ns *= 2; left -= 1; }
+        double2* swap = a; a = b; b = swap;
+    }
+    __syncthreads();
+    return a;
+}
 
 // the columns of the row spectra C (B, n, n + 1), COLUMNS per block: each zero-padded to M = 2^bits
-// rows, transformed (radix 2, decimation in time from bit-reversed order), multiplied by the kernel's
-// spectrum W (n + 1, M), transformed back (decimation in frequency, conjugate twiddles, to
-// bit-reversed order), its first n rows written back; twiddle[k] = exp(-2 pi i k / M), k < M / 2
+// rows, transformed (Stockham, radix 8 then 4 or 2), multiplied by the kernel's spectrum W
+// (n + 1, M), transformed back, its first n rows written back; shared memory 2 COLUMNS M double2
 extern "C" __global__ void columns(double2* C, const double* W, const double2* twiddle, int n, int bits) {
     extern __shared__ double2 x[];
-    const int M = 1 << bits, half_m = M >> 1, k0 = blockIdx.x * COLUMNS;
+    const int M = 1 << bits, k0 = blockIdx.x * COLUMNS;
     double2* own = C + (long long)blockIdx.y * n * (n + 1);
-    for (int idx = threadIdx.x; idx < COLUMNS * M; idx += THREADS) {
+    for (int idx = threadIdx.x; idx < COLUMNS * M; idx += blockDim.x) {
         const int c = idx % COLUMNS, row = idx / COLUMNS, k = k0 + c;
-        x[c * M + (__brev(row) >> (32 - bits))] =
-            row < n && k <= n ? own[(long long)row * (n + 1) + k] : make_double2(0.0, 0.0);
+        x[idx] = row < n && k <= n ? own[(long long)row * (n + 1) + k] : make_double2(0.0, 0.0);
     }
-    for (int s = 0; s < bits; ++s) {
-        __syncthreads();
-        const int half = 1 << s;
-        for (int idx = threadIdx.x; idx < COLUMNS * half_m; idx += THREADS) {
-            const int c = idx / half_m, fly = idx % half_m, j = fly & (half - 1);
-            const int i0 = c * M + ((fly >> s) << (s + 1)) + j, i1 = i0 + half;
-            const double2 a = x[i0], t = times(twiddle[j << (bits - 1 - s)], x[i1]);
-            x[i0] = make_double2(a.x + t.x, a.y + t.y);
-            x[i1] = make_double2(a.x - t.x, a.y - t.y);
-        }
+    double2* a = transform(x, x + COLUMNS * M, twiddle, bits, -1.0);
+    double2* b = a == x ? x + COLUMNS * M : x;
+    for (int idx = threadIdx.x; idx < COLUMNS * M; idx += blockDim.x) {
+        const int k = k0 + idx % COLUMNS;
+        const double w = k <= n ? W[(long long)k * M + idx / COLUMNS] : 0.0;
+        a[idx].x *= w; a[idx].y *= w;
     }
-    __syncthreads();
-    for (int idx = threadIdx.x; idx < COLUMNS * M; idx += THREADS) {
-        const int k = k0 + idx / M;
-        const double w = k <= n ? W[(long long)k * M + idx % M] : 0.0;
-        x[idx].x *= w; x[idx].y *= w;
-    }
-    for (int s = bits - 1; s >= 0; --s) {
-        __syncthreads();
-        const int half = 1 << s;
-        for (int idx = threadIdx.x; idx < COLUMNS * half_m; idx += THREADS) {
-            const int c = idx / half_m, fly = idx % half_m, j = fly & (half - 1);
-            const int i0 = c * M + ((fly >> s) << (s + 1)) + j, i1 = i0 + half;
-            const double2 a = x[i0], b = x[i1], w = twiddle[j << (bits - 1 - s)];
-            x[i0] = make_double2(a.x + b.x, a.y + b.y);
-            x[i1] = times(make_double2(a.x - b.x, a.y - b.y), make_double2(w.x, -w.y));
-        }
-    }
-    __syncthreads();
-    for (int idx = threadIdx.x; idx < COLUMNS * n; idx += THREADS) {
+    a = transform(a, b, twiddle, bits, 1.0);
+    for (int idx = threadIdx.x; idx < COLUMNS * n; idx += blockDim.x) {
         const int c = idx % COLUMNS, row = idx / COLUMNS, k = k0 + c;
-        if (k <= n) own[(long long)row * (n + 1) + k] = x[c * M + (__brev(row) >> (32 - bits))];
+        if (k <= n) own[(long long)row * (n + 1) + k] = a[idx];
     }
 }
 
@@ -349,14 +390,15 @@ class FusedCG:
         self.spectra = cupy.empty((batch, n, n + 1), dtype=cupy.complex128)
         self.separation = cupy.empty((batch, n, n))
         self.state = cupy.zeros((batch, FIELDS))
-        self.flags = np.frombuffer(cupy.cuda.alloc_pinned_memory(self.state.nbytes), np.float64).reshape(batch, FIELDS)
+        pinned = cupy.cuda.alloc_pinned_memory(self.state.nbytes)
+        self.flags = np.frombuffer(pinned, np.float64, batch * FIELDS).reshape(batch, FIELDS)
         self.chunks = -(-n * n // CELLS_PER_BLOCK)
         self.partials = cupy.empty((batch, SUMS, self.chunks))
         self.arrivals = cupy.zeros(batch, dtype=cupy.uint32)
         rows = column_rows(n)
         self.bits = rows.bit_length() - 1
         self.kernel = cupy.asarray(column_spectrum(op, rows))
-        self.twiddle = cupy.asarray(np.exp(-2j * np.pi * np.arange(rows // 2) / rows))
+        self.twiddle = cupy.asarray(np.exp(-2j * np.pi * np.arange(rows) / rows))
         self.cell_area = op.dx * op.dx
         self.forward = get_fft_plan(self.p, axes=(-1,), value_type="R2C")
         self.inverse = get_fft_plan(self.spectra, shape=(2 * n,), axes=(-1,), value_type="C2R")
@@ -364,7 +406,7 @@ class FusedCG:
         self.kernels = {name: module.get_function(name) for name in (
             "contact_sums", "gap_norm", "direction", "step_sums", "update", "rescale", "columns",
             "advance_cells", "advance_copy", "advance_state")}
-        self.shared = COLUMNS * rows * 16
+        self.shared = 2 * COLUMNS * rows * 16
         if self.shared > 48 * 1024:
             self.kernels["columns"].max_dynamic_shared_size_bytes = self.shared
         self.stream = cupy.cuda.Stream()
@@ -377,7 +419,7 @@ class FusedCG:
         from cupy.cuda import cufft
 
         self.forward.fft(source, self.spectra, cufft.CUFFT_FORWARD)
-        self.kernels["columns"]((-(-(self.n + 1) // COLUMNS), self.batch), (256,),
+        self.kernels["columns"]((-(-(self.n + 1) // COLUMNS), self.batch), (COLUMN_THREADS,),
                                 (self.spectra, self.kernel, self.twiddle, np.int32(self.n), np.int32(self.bits)),
                                 shared_mem=self.shared)
         self.inverse.fft(self.spectra, target, cufft.CUFFT_INVERSE)
