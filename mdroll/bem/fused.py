@@ -280,23 +280,27 @@ __device__ double2* transform(double2* a, double2* b, const double2* twiddle, in
 
 // the columns of the row spectra C (B, n, n + 1), COLUMNS per block: each zero-padded to M = 2^bits
 // rows, transformed (Stockham, radix 8 then 4 or 2), multiplied by the kernel's spectrum W
-// (n + 1, M), transformed back, its first n rows written back; shared memory 2 COLUMNS M double2
+// (n + 1, M), transformed back, its first n rows written back. Shared memory: the columns twice
+// (2 COLUMNS M double2), the twiddles (M double2) and the block's spectrum (COLUMNS M double), all
+// read from global memory at the start
 extern "C" __global__ void columns(double2* C, const double* W, const double2* twiddle, int n, int bits) {
     extern __shared__ double2 x[];
     const int M = 1 << bits, k0 = blockIdx.x * COLUMNS;
     double2* own = C + (long long)blockIdx.y * n * (n + 1);
+    double2* turns = x + 2 * COLUMNS * M;
+    double* weights = (double*)(turns + M);
     for (int idx = threadIdx.x; idx < COLUMNS * M; idx += blockDim.x) {
         const int c = idx % COLUMNS, row = idx / COLUMNS, k = k0 + c;
         x[idx] = row < n && k <= n ? own[(long long)row * (n + 1) + k] : make_double2(0.0, 0.0);
+        weights[idx] = k <= n ? W[(long long)k * M + row] : 0.0;
     }
-    double2* a = transform(x, x + COLUMNS * M, twiddle, bits, -1.0);
+    for (int idx = threadIdx.x; idx < M; idx += blockDim.x) turns[idx] = twiddle[idx];
+    double2* a = transform(x, x + COLUMNS * M, turns, bits, -1.0);
     double2* b = a == x ? x + COLUMNS * M : x;
     for (int idx = threadIdx.x; idx < COLUMNS * M; idx += blockDim.x) {
-        const int k = k0 + idx % COLUMNS;
-        const double w = k <= n ? W[(long long)k * M + idx / COLUMNS] : 0.0;
-        a[idx].x *= w; a[idx].y *= w;
+        a[idx].x *= weights[idx]; a[idx].y *= weights[idx];
     }
-    a = transform(a, b, twiddle, bits, 1.0);
+    a = transform(a, b, turns, bits, 1.0);
     for (int idx = threadIdx.x; idx < COLUMNS * n; idx += blockDim.x) {
         const int c = idx % COLUMNS, row = idx / COLUMNS, k = k0 + c;
         if (k <= n) own[(long long)row * (n + 1) + k] = a[idx];
@@ -406,7 +410,7 @@ class FusedCG:
         self.kernels = {name: module.get_function(name) for name in (
             "contact_sums", "gap_norm", "direction", "step_sums", "update", "rescale", "columns",
             "advance_cells", "advance_copy", "advance_state")}
-        self.shared = 2 * COLUMNS * rows * 16
+        self.shared = (2 * COLUMNS + 1) * rows * 16 + COLUMNS * rows * 8
         if self.shared > 48 * 1024:
             self.kernels["columns"].max_dynamic_shared_size_bytes = self.shared
         self.stream = cupy.cuda.Stream()
