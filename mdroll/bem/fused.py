@@ -21,7 +21,7 @@ One iteration (displacement control; load control adds the two passes in bracket
 Each reduction is one kernel over (chunks, members) blocks writing per-chunk partial sums; the last
 block of a member to finish adds them in a fixed order (the result does not depend on the batch)
 and updates the member's scalars. A member that converged (or hit the iteration cap) is skipped by
-every kernel but the FFTs, so it keeps its pressure. Each graph replay runs :data:`CHECK_EVERY`
+every kernel but the row FFTs, so it keeps its pressure. Each graph replay runs :data:`CHECK_EVERY`
 iterations and copies the scalars to pinned host memory; the host keeps two replays in flight and
 looks at the flags of the older one, so the device does not wait for the host.
 """
@@ -33,9 +33,9 @@ import numpy as np
 from ..errors import ParameterError
 
 #: Iterations per graph replay, between two looks at the members' convergence flags.
-CHECK_EVERY = 4
-#: Cells per block of the element-wise kernels (256 threads, two cells each).
-CELLS_PER_BLOCK = 512
+CHECK_EVERY = 8
+#: Cells per block of the element-wise kernels (256 threads, one cell each).
+CELLS_PER_BLOCK = 256
 #: Partial sums per reduction.
 SUMS = 4
 #: Columns of the row spectra per block of the column transform.
@@ -282,9 +282,11 @@ __device__ double2* transform(double2* a, double2* b, const double2* twiddle, in
 // rows, transformed (Stockham, radix 8 then 4 or 2), multiplied by the kernel's spectrum W
 // (n + 1, M), transformed back, its first n rows written back. Shared memory: the columns twice
 // (2 COLUMNS M double2), the twiddles (M double2) and the block's spectrum (COLUMNS M double), all
-// read from global memory at the start
-extern "C" __global__ void columns(double2* C, const double* W, const double2* twiddle, int n, int bits) {
+// read from global memory at the start. A member that is not active is skipped
+extern "C" __global__ void columns(double2* C, const double* W, const double2* twiddle, const double* st, int n,
+                                   int bits) {
     extern __shared__ double2 x[];
+    if (st[(long long)blockIdx.y * FIELDS + ACTIVE] == 0.0) return;
     const int M = 1 << bits, k0 = blockIdx.x * COLUMNS;
     double2* own = C + (long long)blockIdx.y * n * (n + 1);
     double2* turns = x + 2 * COLUMNS * M;
@@ -418,13 +420,14 @@ class FusedCG:
         self.graph = None
 
     def convolve(self, source, target):
-        """``target = K * source`` on the padded grids (only the first n columns of ``target`` are
-        read)."""
+        """``target = K * source`` on the padded grids for the active members (only the first n
+        columns of ``target`` are read)."""
         from cupy.cuda import cufft
 
         self.forward.fft(source, self.spectra, cufft.CUFFT_FORWARD)
         self.kernels["columns"]((-(-(self.n + 1) // COLUMNS), self.batch), (COLUMN_THREADS,),
-                                (self.spectra, self.kernel, self.twiddle, np.int32(self.n), np.int32(self.bits)),
+                                (self.spectra, self.kernel, self.twiddle, self.state, np.int32(self.n),
+                                 np.int32(self.bits)),
                                 shared_mem=self.shared)
         self.inverse.fft(self.spectra, target, cufft.CUFFT_INVERSE)
 
