@@ -1,7 +1,8 @@
 """Speed of the boundary-element reference (mdroll.bem) against its floor: one solve of an n x n rough
 contact (NumPy, and on CUDA the fused solver alone and batched, and the unfused CuPy iteration), the
-floor measured on the device (one batched padded convolution, a device-to-device copy), and a rolling
-ensemble of B realizations x P positions; JSON with the environment and the commit.
+floor measured on the device for the batch and for a lone surface (a padded convolution, an iteration,
+a kernel launch in a graph, a device-to-device copy), and a rolling ensemble of B realizations x P
+positions; JSON with the environment and the commit.
 
     python benchmarks/bem_speed.py --device cuda:0 --cpu-reference --out bem.json     # n 256, B 64, P 2000
     python benchmarks/bem_speed.py --device cpu --n 64 --batch 2 --positions 10 --out bem-cpu.json
@@ -178,10 +179,11 @@ def floor(args):
     # bytes per surface and iteration, n x n float64 cells read or written: element-wise kernels
     # gap_norm 3, direction 5, step_sums 5, update 5; each convolution: the row FFT reads n x 2n
     # doubles and writes n (n + 1) complex, the column kernel reads and writes them, the inverse row
-    # FFT reads them and writes n x 2n doubles (cuFFT in one pass each)
+    # FFT reads them and writes n x 2n doubles (cuFFT in one pass each). Kernels per iteration: three
+    # per convolution and the four element-wise ones
     elementwise = 18 * 8 * n * n
     convolution_bytes = 2 * (8 * 2 * n * n + 16 * n * (n + 1)) + 2 * 16 * n * (n + 1)
-    kernels = 10
+    kernels = 2 * 3 + 4
     bytes_floor = (elementwise + 2 * convolution_bytes) / bandwidth
     lone = out["batch_1"]
     out.update({"batch": args.batch, "copy_bandwidth_bytes_per_second": bandwidth,

@@ -3,11 +3,10 @@ the same iteration, on the same batch, in a few kernels per iteration replayed a
 
 Layout. The pressure p and the conjugate direction t live in the first n columns of zero-padded
 (B, n, 2n) buffers. Each convolution ``K * x`` is three kernels: a batched real FFT of the n rows
-(cuFFT, length 2n), one kernel that takes every column of the row spectra (B, n, n + 1), zero-padded
-to M = the power of two >= 2n - 1 rows, through a radix-2 FFT in shared memory, multiplies it by the
-kernel's spectrum (:func:`mdroll.bem.halfspace.padded_kernel` on the M x 2n grid, real, scaled by
-1 / (2n M)) and transforms it back, keeping its first n rows, and the batched inverse real FFT of
-the rows. The zero rows of the padding are never stored or transformed. u = K p and r = K t stay in
+(cuFFT, length 2n), the column transform of :mod:`mdroll.bem.columns` (every column of the row
+spectra zero-padded, transformed, multiplied by the kernel's spectrum and transformed back in shared
+memory) and the batched inverse real FFT of the rows. The zero rows of the padding are never
+stored or transformed. u = K p and r = K t stay in
 their padded outputs. Per-member scalars (the approach, G, the conjugacy ratio, the step tau, the
 residual, the iteration count and an ``active`` flag) stay on the device in a (B, fields) array.
 
@@ -31,19 +30,17 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ParameterError
+from .columns import COLUMN_SOURCE, COLUMN_THREADS, COLUMNS, MAX_CELLS, column_rows, column_spectrum, shared_bytes
 
 #: Iterations per graph replay, between two looks at the members' convergence flags.
 CHECK_EVERY = 8
-#: Cells per block of the element-wise kernels (256 threads, one cell each).
-CELLS_PER_BLOCK = 256
+#: Threads per block of the element-wise kernels.
+THREADS = 256
+#: Cells of a batch up to which the element-wise kernels take one cell a thread (about the threads
+#: one wave of blocks holds); two above, so that larger batches launch half the blocks.
+ONE_CELL_A_THREAD = 2**18
 #: Partial sums per reduction.
 SUMS = 4
-#: Columns of the row spectra per block of the column transform.
-COLUMNS = 2
-#: Threads per block of the column transform (a radix-8 pass of 512 rows: 64 a column).
-COLUMN_THREADS = 128
-#: Largest window (cells across) on CUDA: the column transform's shared memory.
-MAX_CELLS = 1024
 
 TARGET, APPROACH, G_OLD, DELTA, ACTIVE, ITERATIONS, RESIDUAL, COUNT, G, RATIO, TAU, SCALE, TOL, MAX_ITER, \
     CELL_AREA, FORCE, AREA, NEXT, LOST, POSITION, STEPS = range(21)
@@ -53,7 +50,6 @@ SOURCE = r"""
 #define THREADS 256
 #define SUMS 4
 #define FIELDS 24
-#define COLUMNS 2
 enum {TARGET, APPROACH, G_OLD, DELTA, ACTIVE, ITERATIONS, RESIDUAL, COUNT, G, RATIO, TAU, SCALE, TOL, MAX_ITER,
       CELL_AREA, FORCE, AREA, NEXT, LOST, POSITION, STEPS};
 
@@ -214,101 +210,6 @@ extern "C" __global__ void rescale(const double* U, double* P, double* st, doubl
     REDUCE(4);
 }
 
-__device__ double2 times(double2 a, double2 b) { return make_double2(a.x * b.x - a.y * b.y, a.x * b.y + a.y * b.x); }
-__device__ double2 plus(double2 a, double2 b) { return make_double2(a.x + b.x, a.y + b.y); }
-__device__ double2 minus(double2 a, double2 b) { return make_double2(a.x - b.x, a.y - b.y); }
-// a times i sign
-__device__ double2 turn(double2 a, double sign) { return make_double2(-sign * a.y, sign * a.x); }
-
-// the R-point DFT of v in registers, natural order in and out: exp(sign 2 pi i r k / R)
-template <int R> __device__ void dft(double2* v, double sign);
-template <> __device__ void dft<2>(double2* v, double sign) {
-    const double2 a = v[0];
-    v[0] = plus(a, v[1]); v[1] = minus(a, v[1]);
-}
-template <> __device__ void dft<4>(double2* v, double sign) {
-    const double2 a0 = plus(v[0], v[2]), a1 = minus(v[0], v[2]), a2 = plus(v[1], v[3]),
-                  a3 = turn(minus(v[1], v[3]), sign);
-    v[0] = plus(a0, a2); v[1] = plus(a1, a3); v[2] = minus(a0, a2); v[3] = minus(a1, a3);
-}
-template <> __device__ void dft<8>(double2* v, double sign) {
-    const double h = 0.70710678118654752440;
-    const double2 a0 = plus(v[0], v[4]), a1 = minus(v[0], v[4]), a2 = plus(v[2], v[6]), a3 = minus(v[2], v[6]),
-                  a4 = plus(v[1], v[5]), a5 = minus(v[1], v[5]), a6 = plus(v[3], v[7]), a7 = minus(v[3], v[7]);
-    const double2 b0 = plus(a0, a2), b1 = plus(a1, turn(a3, sign)), b2 = minus(a0, a2),
-                  b3 = minus(a1, turn(a3, sign)), b4 = plus(a4, a6), b5 = plus(a5, turn(a7, sign)),
-                  b6 = minus(a4, a6), b7 = minus(a5, turn(a7, sign));
-    const double2 t1 = times(make_double2(h, sign * h), b5), t2 = turn(b6, sign),
-                  t3 = times(make_double2(-h, sign * h), b7);
-    v[0] = plus(b0, b4); v[1] = plus(b1, t1); v[2] = plus(b2, t2); v[3] = plus(b3, t3);
-    v[4] = minus(b0, b4); v[5] = minus(b1, t1); v[6] = minus(b2, t2); v[7] = minus(b3, t3);
-}
-
-// one Stockham pass of radix R over the block's columns (element i of column c at i * COLUMNS + c),
-// from a to b: sub-transforms of length Ns become R Ns long; twiddle[k] = exp(-2 pi i k / M), k < M
-template <int R>
-__device__ void pass(const double2* a, double2* b, const double2* twiddle, int M, int Ns, double sign) {
-    const int T = M / R, step = M / (Ns * R);
-    for (int u = threadIdx.x; u < COLUMNS * T; u += blockDim.x) {
-        const int c = u % COLUMNS, j = u / COLUMNS, k = j % Ns;
-        double2 v[R];
-#pragma unroll
-        for (int r = 0; r < R; ++r) {
-            const double2 w = twiddle[k * r * step];
-            v[r] = times(a[(j + r * T) * COLUMNS + c], make_double2(w.x, sign * -w.y));
-        }
-        dft<R>(v, sign);
-        const int base = (j / Ns) * Ns * R + k;
-#pragma unroll
-        for (int r = 0; r < R; ++r) b[(base + r * Ns) * COLUMNS + c] = v[r];
-    }
-}
-
-// the block's columns in a transformed (b the scratch buffer): exp(sign 2 pi i ...); the buffer that
-// holds the result, in natural order
-__device__ double2* transform(double2* a, double2* b, const double2* twiddle, int bits, double sign) {
-    for (int Ns = 1, left = bits; left > 0;) {
-        __syncthreads();
-        if (left >= 3) { pass<8>(a, b, twiddle, 1 << bits, Ns, sign); Ns *= 8; left -= 3; }
-        else if (left == 2) { pass<4>(a, b, twiddle, 1 << bits, Ns, sign); Ns *= 4; left -= 2; }
-        else { pass<2>(a, b, twiddle, 1 << bits, Ns, sign); Ns *= 2; left -= 1; }
-        double2* swap = a; a = b; b = swap;
-    }
-    __syncthreads();
-    return a;
-}
-
-// the columns of the row spectra C (B, n, n + 1), COLUMNS per block: each zero-padded to M = 2^bits
-// rows, transformed (Stockham, radix 8 then 4 or 2), multiplied by the kernel's spectrum W
-// (n + 1, M), transformed back, its first n rows written back. Shared memory: the columns twice
-// (2 COLUMNS M double2), the twiddles (M double2) and the block's spectrum (COLUMNS M double), all
-// read from global memory at the start. A member that is not active is skipped
-extern "C" __global__ void columns(double2* C, const double* W, const double2* twiddle, const double* st, int n,
-                                   int bits) {
-    extern __shared__ double2 x[];
-    if (st[(long long)blockIdx.y * FIELDS + ACTIVE] == 0.0) return;
-    const int M = 1 << bits, k0 = blockIdx.x * COLUMNS;
-    double2* own = C + (long long)blockIdx.y * n * (n + 1);
-    double2* turns = x + 2 * COLUMNS * M;
-    double* weights = (double*)(turns + M);
-    for (int idx = threadIdx.x; idx < COLUMNS * M; idx += blockDim.x) {
-        const int c = idx % COLUMNS, row = idx / COLUMNS, k = k0 + c;
-        x[idx] = row < n && k <= n ? own[(long long)row * (n + 1) + k] : make_double2(0.0, 0.0);
-        weights[idx] = k <= n ? W[(long long)k * M + row] : 0.0;
-    }
-    for (int idx = threadIdx.x; idx < M; idx += blockDim.x) turns[idx] = twiddle[idx];
-    double2* a = transform(x, x + COLUMNS * M, turns, bits, -1.0);
-    double2* b = a == x ? x + COLUMNS * M : x;
-    for (int idx = threadIdx.x; idx < COLUMNS * M; idx += blockDim.x) {
-        a[idx].x *= weights[idx]; a[idx].y *= weights[idx];
-    }
-    a = transform(a, b, turns, bits, 1.0);
-    for (int idx = threadIdx.x; idx < COLUMNS * n; idx += blockDim.x) {
-        const int c = idx % COLUMNS, row = idx / COLUMNS, k = k0 + c;
-        if (k <= n) own[(long long)row * (n + 1) + k] = a[idx];
-    }
-}
-
 // rolling: a member that converged records its position's results and moves one row on: its pressure
 // shifted back one row (to U first), the next window's separation, t = 0
 extern "C" __global__ void advance_cells(const double* P, double* U, double* S, double* T, const double* surface,
@@ -359,22 +260,6 @@ extern "C" __global__ void advance_state(double* st, const double* part, double*
 """
 
 
-def column_rows(n: int) -> int:
-    """M, the rows of the column transform of an n x n grid: the power of two >= 2n - 1 (a linear
-    convolution's lags -n < i < n, without wrapping)."""
-    return 1 << (2 * n - 2).bit_length()
-
-
-def column_spectrum(op, rows: int):
-    """The kernel's real spectrum on the ``rows`` x 2n padded grid, as (n + 1, rows) (one column of
-    the row spectra a row), scaled by 1 / (2n rows) for the unnormalised inverse transforms."""
-    from .halfspace import padded_kernel
-
-    n = op.n
-    spectrum = np.fft.rfft2(padded_kernel(n, op.dx, op.E_star, rows=rows)).real
-    return np.ascontiguousarray(spectrum.T / (2.0 * n * rows))
-
-
 class FusedCG:
     """Solver state of one batch shape on one CUDA device: padded buffers, cuFFT plans, kernels and
     the CUDA graph of :data:`CHECK_EVERY` iterations, built once and reused for every call. Call it
@@ -398,7 +283,8 @@ class FusedCG:
         self.state = cupy.zeros((batch, FIELDS))
         pinned = cupy.cuda.alloc_pinned_memory(self.state.nbytes)
         self.flags = np.frombuffer(pinned, np.float64, batch * FIELDS).reshape(batch, FIELDS)
-        self.chunks = -(-n * n // CELLS_PER_BLOCK)
+        cells = THREADS * (1 if batch * n * n <= ONE_CELL_A_THREAD else 2)
+        self.chunks = -(-n * n // cells)
         self.partials = cupy.empty((batch, SUMS, self.chunks))
         self.arrivals = cupy.zeros(batch, dtype=cupy.uint32)
         rows = column_rows(n)
@@ -408,11 +294,11 @@ class FusedCG:
         self.cell_area = op.dx * op.dx
         self.forward = get_fft_plan(self.p, axes=(-1,), value_type="R2C")
         self.inverse = get_fft_plan(self.spectra, shape=(2 * n,), axes=(-1,), value_type="C2R")
-        module = cupy.RawModule(code=SOURCE)
+        module = cupy.RawModule(code=SOURCE + COLUMN_SOURCE)
         self.kernels = {name: module.get_function(name) for name in (
             "contact_sums", "gap_norm", "direction", "step_sums", "update", "rescale", "columns",
             "advance_cells", "advance_copy", "advance_state")}
-        self.shared = (2 * COLUMNS + 1) * rows * 16 + COLUMNS * rows * 8
+        self.shared = shared_bytes(rows)
         if self.shared > 48 * 1024:
             self.kernels["columns"].max_dynamic_shared_size_bytes = self.shared
         self.stream = cupy.cuda.Stream()
@@ -432,7 +318,7 @@ class FusedCG:
         self.inverse.fft(self.spectra, target, cufft.CUFFT_INVERSE)
 
     def _iteration(self):
-        grid, block, n, load = (self.chunks, self.batch), (256,), np.int32(self.n), np.int32(self.load)
+        grid, block, n, load = (self.chunks, self.batch), (THREADS,), np.int32(self.n), np.int32(self.load)
         k, u, p, s, t, st, part = self.kernels, self.u, self.p, self.separation, self.t, self.state, self.partials
         arrivals = self.arrivals
         self.convolve(p, u)
@@ -507,7 +393,7 @@ class FusedRoll(FusedCG):
 
     def _iteration(self):
         super()._iteration()
-        grid, block, n, k = (self.chunks, self.batch), (256,), np.int32(self.n), self.kernels
+        grid, block, n, k = (self.chunks, self.batch), (THREADS,), np.int32(self.n), self.kernels
         length, width = self.surface.shape[1:]
         k["advance_cells"](grid, block, (self.p, self.u, self.separation, self.t, self.surface, self.gap, self.state,
                                          self.partials, n, np.int32(length), np.int32(width), np.int32(self.start),
