@@ -175,8 +175,8 @@ KNOWN = {
     "patch": "today's MDR sphere carries the load but has neither the Hertz ellipse's length nor its stiffness",
     "filter": "few bins a band and one centre line as the roughness reference: the measured filter scatters",
     "dprs": "the springs average the roughness uniformly over the patch, 2 J1(rho)/rho, where the elastic contact "
-            "weights it by the flat-punch pressure, sinc(rho): the bed's filter falls faster above rho ~ 1 and "
-            "its zeros are J1's, not j pi",
+            "weights it by the flat-punch pressure, singular at the edge, sinc(rho): the bed's filter lies above "
+            "the 3-D's at the knee (first zero at rho = 3.83, not pi) and falls as rho^-3, not rho^-2, beyond",
     "dprs low": "below q_min the force is second order in the roughness: independent springs at the patch's edge "
                 "are not the elastic contact's coupled edge",
 }
