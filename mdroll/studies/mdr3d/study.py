@@ -177,8 +177,10 @@ KNOWN = {
     "dprs": "the springs average the roughness uniformly over the patch, 2 J1(rho)/rho, where the elastic contact "
             "weights it by the flat-punch pressure, singular at the edge, sinc(rho): the bed's filter lies above "
             "the 3-D's at the knee (first zero at rho = 3.83, not pi) and falls as rho^-3, not rho^-2, beyond",
-    "dprs low": "below q_min the force is second order in the roughness: independent springs at the patch's edge "
-                "are not the elastic contact's coupled edge",
+    "dprs low": "below q_min on a corrugation the force is second order in the roughness, set at the contact's "
+                "edge, where independent springs are not the elastic contact's coupled edge",
+    "dprs lateral": "below q_min on (b), (c) the force is linear through lateral waves, which the springs average "
+                    "uniformly across the patch (2 J1 of q_y a_y) and the elastic contact with the flat-punch weight",
 }
 #: The models compared with the 3-D reference: the MDR variants and the DPRS bed.
 MODELS = problems.VARIANTS + ("dprs",)
@@ -189,7 +191,7 @@ FILTER_RANGES = (("q a_x < 1", 0.0, 1.0), ("1 <= q a_x < pi", 1.0, math.pi), ("q
 def known(surface: str, indenter: str, variant: str, band: str) -> str:
     """The explanation of :data:`KNOWN` that applies to a claim, or ""."""
     if variant == "dprs":
-        return KNOWN["dprs low"] if band == "low" else KNOWN["dprs"]
+        return KNOWN["dprs"] if band != "low" else KNOWN["dprs low"] if surface == "a" else KNOWN["dprs lateral"]
     if band == "low":
         return KNOWN["low"]
     if surface != "a":
