@@ -51,8 +51,8 @@ def _filters(fig, runs, forms):
             lam = band_centres(case["filter"]["bands"])
             ax.semilogx(lam, case["filter"]["3d"], "ko", ms=4, label="3-D (BEM)")
             for variant, marker in MARKERS.items():
-                label = "DPRS" if variant == "dprs" else f"MDR {variant}"
-                ax.semilogx(lam, case["filter"][variant], marker, ms=3, label=label)
+                label, colour = ("DPRS", "tab:purple") if variant == "dprs" else (f"MDR {variant}", None)
+                ax.semilogx(lam, case["filter"][variant], marker, ms=3, color=colour, label=label)
             lam_c = band_centres(closed["bands"])
             for model, (colour, style) in STYLES.items():
                 ax.semilogx(lam_c, closed[surface][model], style, color=colour, lw=0.8, label=f"linear {model}")
