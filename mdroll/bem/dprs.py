@@ -10,11 +10,13 @@ the approach delta a spring at (x, y) under the indenter is compressed by
 
 h the rough surface (positive up, towards the indenter, as in :func:`mdroll.bem.solve`); a
 spring in tension carries nothing, so the force is ``F = kappa integral max(w, 0) dA`` (non-linear
-where the contact opens). A Winkler bed under a paraboloid of radii R_x, R_y touches on twice
-Hertz's area at the same approach, so the model halves the radii: ``z = x^2 / R_x + y^2 / R_y``.
-Here the bed's paraboloid is the one whose smooth contact at delta is Hertz's ellipse of
-semi-axes a (along the track) and b; for a sphere of radius R at Hertz's approach d,
-``a^2 = R d`` and z is exactly the halved radius's ``x^2 / R + y^2 / R``.
+where the contact opens). A bed of independent springs under a sphere of radius R touches on
+``a^2 = 2 R delta``, twice Hertz's area at the same approach, so the model halves the radii,
+``z = x^2 / R_x + y^2 / R_y``, for the static patch to be Hertz's. Here the bed's paraboloid is
+the one whose smooth contact at delta is Hertz's ellipse of semi-axes a (along the track) and b:
+for a sphere at Hertz's approach d, ``a^2 = R d`` and z is exactly the halved radius's
+``x^2 / R + y^2 / R``; for an ellipsoid, halving both radii would not give Hertz's ellipse, whose
+axis ratio is not ``sqrt(R_y / R_x)``.
 
 Static load. On a smooth surface ``F = kappa delta integral_ellipse (1 - x^2/a^2 - y^2/b^2) dA
 = kappa pi a b delta / 2``, so the nominal load F sets ``kappa = 2 F / (pi a b delta)``, and the
