@@ -190,6 +190,8 @@ COMMANDS = {
     "python benchmarks/cpu_full_run.py --repeats 3 --out cpu_full_run.json":
         ("options", "python benchmarks/cpu_full_run.py"),
     "OUT=DIR bash benchmarks/gpu_session.sh tests": ("ci", "the GPU machine's session script"),
+    # track.md: the moving load over discrete supports
+    "mdroll run --mode coupled --set track=ballasted-soft-pad --set track.parametric=true": ("options", "mdroll run"),
     # track.md: the track alone
     "mdroll track receptance --set track=ballasted-soft-pad --position midspan --out rec":
         ("run", "mdroll track receptance --set track=ballasted-soft-pad --position midspan --points 20 --out rec",

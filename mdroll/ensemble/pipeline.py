@@ -31,7 +31,7 @@ from ..forces.steps import BOUNDARIES
 from .batching import check_batch_fits, check_run_fits, default_batch
 from .checkpoint import RunTotals
 from .coupled import contact_compliance, coupled_series
-from .lines import check_seed, realization_indices, rough_lines
+from .lines import add_line, check_seed, parametric_line, realization_indices, rough_lines
 from ..roughness.kinds import check_spectrum
 from ..roughness.line_grid import from_params, line_rms
 from .result import EnsembleResult
@@ -155,7 +155,8 @@ def run_ensemble(
         only: the contact point then moves with the rail's fitted state space (the wheel
         standing above a sleeper) and a modal wheel's modes
         (:func:`mdroll.ensemble.coupled.contact_compliance`); the roughness moves under a
-        stationary wheel. The result records them; the wheel and rail vibration spectra follow
+        stationary wheel. A track with ``parametric = True`` adds the moving load's equivalent
+        roughness (:func:`mdroll.ensemble.lines.parametric_line`) to every line. The result records them; the wheel and rail vibration spectra follow
         from the force's (:meth:`EnsembleResult.vibration`, :mod:`mdroll.ensemble.vibration`).
 
     Returns
@@ -178,7 +179,7 @@ def run_ensemble(
                              f"response is {INTEGRATORS[0]!r}; use mode = 'coupled'")
     (algorithm_entry if mode == "decoupled" else coupled_entry)(algorithm)
     check_choice("boundary", boundary, BOUNDARIES)
-    compliance = contact_compliance(track, wheel)
+    compliance = contact_compliance(track and track.structure(), wheel)
     if mode == "decoupled" and compliance[0] is not None:
         raise ParameterError("track and wheel other than rigid are not allowed with mode = 'decoupled': "
                              "use mode = 'coupled' (the frequency-domain chain is mdroll.track.linear_chain)")
@@ -217,7 +218,9 @@ def run_ensemble(
     totals.batch = int(batch)
     check_batch_fits(params, min(totals.batch, len(indices)), device, mode)
     d0 = params.d0
-    h_bound = H_BOUND_SIGMAS * line_rms(params, roughness)
+    excitation = parametric_line(params, track, device)
+    h_bound = H_BOUND_SIGMAS * line_rms(params, roughness) + (0.0 if excitation is None else
+                                                              float(np.max(np.abs(excitation.numpy()))))
     timings = totals.timings
     bar = progress_bar(len(indices), progress)
     bar.update(totals.done)
@@ -228,7 +231,8 @@ def run_ensemble(
     def series_moments(idx, clock, serial=contextlib.nullcontext()):
         """Lines -> force (and response) -> sums and PSD moments of the realizations ``idx``;
         the coupled response inside ``serial``."""
-        lines = clock("generate", lambda: to_warp(rough_lines(params, seed, idx, device=device, roughness=roughness), device))
+        lines = clock("generate", lambda: add_line(to_warp(rough_lines(params, seed, idx, device=device,
+                                                                       roughness=roughness), device), excitation, device))
         prepared = clock("build", lambda: prepare_lines(lines, params, algorithm, boundary, d0, device, leaf_size, h_bound))
         if decoupled:
             out = buffers.empty("force", (len(idx), prepared.steps), warp().float64, device)
