@@ -202,6 +202,8 @@ def run_ensemble(
         key["integrator"] = integrator
     if compliance[0] is not None:
         key["track"], key["wheel"] = (dataclasses.asdict(x) if x else None for x in (track, wheel))
+        if key["track"] and not key["track"]["parametric"]:  # the key of a plain track is the one written before the option existed
+            del key["track"]["parametric"]
     if roughness is None and params.roughness != "powerlaw":
         roughness = from_params(params)  # read (a table file) once, not per batch
     if roughness is not None:
