@@ -9,6 +9,13 @@ step's still holds (:func:`settled_reaches`; two comparisons on the step's chain
 square root). The wheel moves one spring a step, so the springs and prefix sums a step will read
 are known long before: each step asks the L1 cache for those :data:`PREFETCH_AHEAD` springs
 ahead of the wheel, and the step's own loads, which wait on d, find them there.
+
+Known long before too is all of a step's force but its comparison with d: over a window of
+indentations, the springs below it touch and those above do not, so F = k (N d - T) plus the
+few springs whose threshold lies in the window. :func:`prepared_sum` builds that a few steps
+ahead (in helper warps, :func:`mdroll.kernels.dynamics.with_helpers`), and the step itself
+(:func:`prepared_force`) is a few operations, summing its band directly only where d left the
+window.
 """
 
 import warp as wp
