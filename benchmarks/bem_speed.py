@@ -1,7 +1,8 @@
 """Speed of the boundary-element reference (mdroll.bem) against its floor: one solve of an n x n rough
 contact (NumPy, and on CUDA the fused solver alone and batched, and the unfused CuPy iteration), the
-floor measured on the device (one batched padded convolution, a device-to-device copy), and a rolling
-ensemble of B realizations x P positions; JSON with the environment and the commit.
+floor measured on the device for the batch and for a lone surface (a padded convolution, an iteration,
+a kernel launch in a graph, a device-to-device copy), and a rolling ensemble of B realizations x P
+positions; JSON with the environment and the commit.
 
     python benchmarks/bem_speed.py --device cuda:0 --cpu-reference --out bem.json     # n 256, B 64, P 2000
     python benchmarks/bem_speed.py --device cpu --n 64 --batch 2 --positions 10 --out bem-cpu.json
@@ -119,28 +120,55 @@ def contactmechanics_solve(heights, dx, d0, force):
     return {"seconds": seconds, "iterations": int(result.nit), "force": theirs, "force_ratio": force / theirs}
 
 
-def floor(args):
-    """The floor measured on the device: a batched padded convolution (2 per iteration) of B surfaces,
-    and the copy bandwidth for the element-wise passes (read + write bytes over time)."""
+def _graph_seconds(stream, body, repeats=20):
+    """Seconds of one ``body()``: captured ``repeats`` times in a CUDA graph, the graph's replay
+    timed by events after one untimed replay."""
     import cupy
 
-    from mdroll.bem.fused import FusedCG
-
-    n, batch = args.n, args.batch
-    op = HalfSpace(n, 1e-5, E_STAR, xp=cupy)
-    solver = FusedCG(op, batch, False)
-    solver.p[:, :n, :n] = cupy.random.default_rng(1).random((batch, n, n))
+    stream.begin_capture()
+    for _ in range(repeats):
+        body()
+    graph = stream.end_capture()
     start, end = cupy.cuda.Event(), cupy.cuda.Event()
-    with solver.stream:
-        solver.convolve(solver.p, solver.u)
-        start.record()
-        for _ in range(20):
-            solver.convolve(solver.p, solver.u)
-        end.record()
+    graph.launch(stream)
+    start.record(stream)
+    graph.launch(stream)
+    end.record(stream)
     end.synchronize()
-    convolution = cupy.cuda.get_elapsed_time(start, end) / 1e3 / 20
+    return cupy.cuda.get_elapsed_time(start, end) / 1e3 / repeats
+
+
+def floor(args):
+    """The floor measured on the device, for the batch and for a lone surface: a padded convolution
+    (2 per iteration), an iteration of the fused solver that never converges (tol 0), a kernel
+    launch in a graph (an element-wise kernel of a member that is skipped), and the copy bandwidth
+    for the element-wise passes (read + write bytes over time)."""
+    import cupy
+
+    from mdroll.bem import fused
+
+    n = args.n
+    out = {}
+    for batch in (args.batch, 1):
+        op = HalfSpace(n, 1e-5, E_STAR, xp=cupy)
+        solver = fused.FusedCG(op, batch, False)
+        with solver.stream:
+            solver.p[:, :, :n] = cupy.random.default_rng(1).random((batch, n, n))
+            solver.separation[...] = cupy.random.default_rng(2).random((batch, n, n))
+            state = np.zeros((batch, fused.FIELDS))
+            state[:, fused.ACTIVE], state[:, fused.MAX_ITER], state[:, fused.G_OLD] = 1.0, 1e18, 1.0
+            solver.state.set(state)
+            convolution = _graph_seconds(solver.stream, lambda: solver.convolve(solver.p, solver.u))
+            iteration = _graph_seconds(solver.stream, solver._iteration)
+            solver.state[:, fused.ACTIVE] = 0.0
+            launch = _graph_seconds(solver.stream, lambda: solver.kernels["direction"](
+                (solver.chunks, batch), (256,), (solver.u, solver.p, solver.separation, solver.t, solver.state,
+                                                 np.int32(n))), 100)
+        out[f"batch_{batch}"] = {"convolution_seconds_per_surface": convolution / batch,
+                                 "iteration_seconds_per_surface": iteration / batch, "kernel_launch_seconds": launch}
     source = cupy.random.default_rng(2).random(2**25)
     target = cupy.empty_like(source)
+    start, end = cupy.cuda.Event(), cupy.cuda.Event()
     cupy.copyto(target, source)
     start.record()
     for _ in range(10):
@@ -148,13 +176,24 @@ def floor(args):
     end.record()
     end.synchronize()
     bandwidth = 2 * source.nbytes * 10 / (cupy.cuda.get_elapsed_time(start, end) / 1e3)
-    # element-wise traffic of one iteration per surface (displacement control), n x n float64 arrays
-    # read or written: gap_norm 3, direction 5, step_sums 5, update 5
+    # bytes per surface and iteration, n x n float64 cells read or written: element-wise kernels
+    # gap_norm 3, direction 5, step_sums 5, update 5; each convolution: the row FFT reads n x 2n
+    # doubles and writes n (n + 1) complex, the column kernel reads and writes them, the inverse row
+    # FFT reads them and writes n x 2n doubles (cuFFT in one pass each). Kernels per iteration: three
+    # per convolution and the four element-wise ones
     elementwise = 18 * 8 * n * n
-    per_iteration = (2 * convolution / batch + elementwise / bandwidth)
-    return {"batch": batch, "convolution_seconds": convolution, "convolution_seconds_per_surface": convolution / batch,
-            "copy_bandwidth_bytes_per_second": bandwidth, "elementwise_bytes_per_iteration": elementwise,
-            "floor_seconds_per_iteration_and_surface": per_iteration}
+    convolution_bytes = 2 * (8 * 2 * n * n + 16 * n * (n + 1)) + 2 * 16 * n * (n + 1)
+    kernels = 2 * 3 + 4
+    bytes_floor = (elementwise + 2 * convolution_bytes) / bandwidth
+    lone = out["batch_1"]
+    out.update({"batch": args.batch, "copy_bandwidth_bytes_per_second": bandwidth,
+                "elementwise_bytes_per_iteration": elementwise, "convolution_bytes": convolution_bytes,
+                "kernels_per_iteration": kernels,
+                "floor_seconds_per_iteration_and_surface": (2 * out[f"batch_{args.batch}"][
+                    "convolution_seconds_per_surface"] + elementwise / bandwidth),
+                "bytes_floor_seconds_per_iteration": bytes_floor,
+                "lone_floor_seconds_per_iteration": max(bytes_floor, kernels * lone["kernel_launch_seconds"])})
+    return out
 
 
 def rolling_ensemble(args):

@@ -1,5 +1,6 @@
 """Coupled mode (eq 13): the coupled kernel alone against the realizations a launch holds, the
-band's width (dx) and the realizations (warps) a block, rigid and on a track preset; each the
+band's width (dx), the realizations (warps) a block and the helper warps a realization
+(``--helpers``, default the launch's own choice), rigid and on a track preset; each the
 median wall time of a few launches, the device synchronized around each
 (:func:`mdroll.bench.timed`; a launch takes ~0.1-1 s, its host set-up ~1 ms), on lines prepared
 once, with the time a step takes per launch (the floor's unit: one dependent chain).
@@ -32,6 +33,8 @@ def main() -> None:
     parser.add_argument("--dx", type=float, nargs="+", default=[10e-6, 5e-6, 2.5e-6], help="spring spacings (m)")
     parser.add_argument("--warps", type=int, nargs="+", default=[1, 2, 4, 8], help="realizations a block (CUDA)")
     parser.add_argument("--tracks", nargs="+", default=["rigid", "ballasted-soft-pad"])
+    parser.add_argument("--helpers", type=int, nargs="+", default=None,
+                        help="helper warps a realization (CUDA; default: the launch's choice)")
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
     device = resolve_device(args.device)
@@ -48,7 +51,8 @@ def main() -> None:
             cases += [(algorithm, dx, count, None, "rigid") for dx in args.dx if dx != base_dx]
             cases += [(algorithm, base_dx, count, warps, "rigid") for warps in args.warps]
     prepared_for = {}
-    for algorithm, dx, count, warps, track in cases:
+    cases = [(*case, helpers) for case in cases for helpers in (args.helpers or [None])]
+    for algorithm, dx, count, warps, track, helpers in cases:
         params = Params(dx=dx, L=dx * 2 ** args.steps_log2)
         key = (algorithm, dx, count)
         if key not in prepared_for:
@@ -57,16 +61,18 @@ def main() -> None:
             prepared_for[key] = prepare_lines(lines, params, algorithm, "open", params.d0, device)
         prepared = prepared_for[key]
         compliance = contact_compliance(Track.preset(track), None)
-        coupled_series(prepared, params, algorithm, device, compliance=compliance, warps=warps)  # compile, warm
-        seconds, times = timed(
-            lambda: coupled_series(prepared, params, algorithm, device, compliance=compliance, warps=warps),
-            device, args.repeats)
-        run = {"algorithm": algorithm, "dx": dx, "realizations": count, "warps": warps, "track": track,
-               "steps": prepared.steps, "seconds": seconds, "times": times,
+        def launch():
+            return coupled_series(prepared, params, algorithm, device, compliance=compliance, warps=warps,
+                                  helpers=helpers)
+
+        launch()  # compile, warm
+        seconds, times = timed(launch, device, args.repeats)
+        run = {"algorithm": algorithm, "dx": dx, "realizations": count, "warps": warps, "helpers": helpers,
+               "track": track, "steps": prepared.steps, "seconds": seconds, "times": times,
                "ns_per_step": seconds / prepared.steps * 1e9}
         record["runs"].append(run)
-        print(f"{algorithm:<6} dx {dx:.2e} R {count:5d} warps {warps or '-'!s:>2} {track:<20} {seconds:8.4f} s "
-              f"{run['ns_per_step']:8.1f} ns/step", flush=True)
+        print(f"{algorithm:<6} dx {dx:.2e} R {count:5d} warps {warps or '-'!s:>2} helpers {helpers!s:>4} "
+              f"{track:<20} {seconds:8.4f} s {run['ns_per_step']:8.1f} ns/step", flush=True)
     with open(args.out, "w") as f:
         json.dump(record, f, indent=1)
 

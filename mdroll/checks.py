@@ -42,3 +42,10 @@ def check_nonnegative(name: str, value, unit: str = "") -> float:
 def check_real(name: str, value, unit: str = "") -> float:
     """``value`` as a float if it is a finite real number."""
     return check_number(name, value, "finite", math.isfinite, unit)
+
+
+def first_negative_or_nonfinite(values: np.ndarray) -> int | None:
+    """Index of the first entry of ``values`` that is not finite or is negative (a spectrum, a
+    variance or a standard error must be neither), or None if every entry is finite and >= 0."""
+    bad = ~np.isfinite(values) | (values < 0)
+    return int(np.argmax(bad)) if bad.any() else None

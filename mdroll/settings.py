@@ -31,14 +31,26 @@ def parse_number(key: str, text) -> float:
         raise ParameterError(f"{key} = {text!r} is not allowed: it must be a number") from None
 
 
+def parse_flag(key: str, text) -> bool:
+    """The flag ``text`` given for ``key``: a bool (as a TOML table gives it) or the text ``true``
+    or ``false`` (any case), or ParameterError."""
+    if isinstance(text, bool):
+        return text
+    if isinstance(text, str) and text.strip().lower() in ("true", "false"):
+        return text.strip().lower() == "true"
+    raise ParameterError(f"{key} = {text!r} is not allowed: it must be true or false")
+
+
 class Presettable:
     """For a frozen dataclass of parameters named ``<PREFIX>.<field>`` with presets: the class sets
-    ``PREFIX`` (``"track"``), ``PRESETS`` (name -> field values) and ``TEXT_FIELDS`` (the fields
-    given as text; every other field a setting gives is a number)."""
+    ``PREFIX`` (``"track"``), ``PRESETS`` (name -> field values), ``TEXT_FIELDS`` (the fields
+    given as text) and ``FLAG_FIELDS`` (true or false); every other field a setting gives is a
+    number."""
 
     PREFIX: str
     PRESETS: dict
     TEXT_FIELDS: tuple
+    FLAG_FIELDS: tuple = ()
 
     @classmethod
     def preset(cls, name: str):
@@ -71,7 +83,8 @@ class Presettable:
         for key, value in pairs:
             if key != cls.PREFIX:
                 name = key.removeprefix(f"{cls.PREFIX}.")
-                made = made.with_values(**{name: value if name in cls.TEXT_FIELDS else parse_number(key, value)})
+                made = made.with_values(**{name: value if name in cls.TEXT_FIELDS else parse_flag(key, value)
+                                           if name in cls.FLAG_FIELDS else parse_number(key, value)})
         return made
 
     def as_dict(self) -> dict:

@@ -15,6 +15,7 @@ import pytest
 
 from mdroll import physics
 from mdroll.bem import elliptical_ratio, extruded, generator, hertz_elliptical, roll, self_affine, solve
+from mdroll.bem.columns import column_rows, column_spectrum
 from mdroll.bem.halfspace import HalfSpace, love_coefficient
 from mdroll.bem.hertz import sphere_errors
 from mdroll.errors import ParameterError
@@ -47,6 +48,22 @@ def test_halfspace_is_the_direct_sum_of_love_coefficients(device):
         fast = HalfSpace(n, dx, E_STAR, xp=xp).displacement(xp.asarray(pressure))
         fast = fast.get() if hasattr(fast, "get") else fast
     np.testing.assert_allclose(fast, direct, rtol=1e-12, atol=1e-12 * np.abs(direct).max())
+
+
+@pytest.mark.parametrize("n", [24, 37])
+def test_rows_padded_to_a_power_of_two_keep_the_convolution(n):
+    # the CUDA column transform pads the columns to M = 2^k >= 2n - 1 rows, not 2n: the linear
+    # convolution on the first n x n cells is unchanged (NumPy's FFTs along the same passes)
+    op = HalfSpace(n, 1e-4, E_STAR)
+    rows = column_rows(n)
+    assert rows >= 2 * n - 1 and rows & (rows - 1) == 0
+    pressure = np.zeros((2, n, 2 * n))
+    pressure[..., :n] = np.random.default_rng(n).uniform(0.0, 1e8, size=(2, n, n))
+    spectra = np.fft.fft(np.fft.rfft(pressure, axis=-1), n=rows, axis=-2) * column_spectrum(op, rows).T
+    back = np.fft.ifft(spectra, axis=-2)[:, :n] * rows
+    displacement = np.fft.irfft(back, n=2 * n, axis=-1)[..., :n] * 2 * n
+    direct = op.displacement(pressure[..., :n])
+    np.testing.assert_allclose(displacement, direct, rtol=0, atol=1e-13 * np.abs(direct).max())
 
 
 def test_love_coefficient_far_field_is_boussinesq():

@@ -35,6 +35,20 @@ def test_every_layout_is_the_direct_sums_coupled_run(device):
     assert np.max(np.abs(_series(lines, "tree", device, band_limit=0) - direct)) <= 1e-12 * ROUGH.F_N
 
 
+def test_prepared_steps_are_the_direct_sums_coupled_run(device):
+    # the thesis's defaults (a band of ~44 springs a side): each step's force prepared ahead over a
+    # window of d, by the stepping lanes themselves (CPU), by one or three helper warps (CUDA), or
+    # on CUDA without helpers the band summed directly
+    p = Params(L=0.03)
+    lines = rough_lines(p, seed=3, realizations=3, device=device)
+    prepared = prepare_lines(lines, p, "sweep", "open", p.d0, device)
+    direct = to_numpy(coupled_series(prepare_lines(lines, p, "direct", "open", p.d0, device), p, "direct", device)[0])
+    assert np.ptp(direct) > 1e-3 * p.F_N
+    for helpers in (None, 0, 1):
+        series = to_numpy(coupled_series(prepared, p, "sweep", device, helpers=helpers)[0])
+        assert np.max(np.abs(series - direct)) <= 1e-12 * p.F_N, helpers
+
+
 def test_modal_contact_point_is_the_stepped_state_space(device):
     # eq 13 with d = d_w - y: y the output 2 Re sum q of q <- phi q + gamma (F - F_N), numpy in complex.
     # The fitted modes are large and cancel (|q| up to ~80 for |y| <= ~6e-8 m here), so any order of
@@ -63,13 +77,16 @@ def test_modal_contact_point_is_the_stepped_state_space(device):
 
 
 def test_layout_counts_are_bounded():
-    from mdroll.ensemble.coupled import coupled_layout
+    from mdroll.ensemble.coupled import coupled_helpers, coupled_layout
     from mdroll.errors import ParameterError
 
     assert coupled_layout(5, "cuda:0", 4) == (2, 128)
     assert coupled_layout(5, "cpu", 4) == (5, 128)
     with pytest.raises(ParameterError, match=r"^warps = 33: allowed are 1 to 32 realizations a block$"):
         coupled_layout(5, "cpu", 33)
+    assert coupled_helpers(5, "cpu") == 0 and coupled_helpers(5, "cpu", 3) == 3
+    with pytest.raises(ParameterError, match=r"^helpers = 32: allowed are 0 to 31 helper warps a realization$"):
+        coupled_helpers(5, "cpu", 32)
 
 
 def test_spectra_in_parts_are_the_whole_batchs(device, monkeypatch):

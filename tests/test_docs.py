@@ -172,6 +172,9 @@ COMMANDS = {
     "--warps 4 --out coupled_scaling.json": ("options", "python benchmarks/coupled_scaling.py"),
     "python benchmarks/coupled_scaling.py --algorithms sweep --realizations 300 1200 4800 --dx 5e-6 --warps 1 "
     "--tracks rigid --out coupled_scaling.json": ("options", "python benchmarks/coupled_scaling.py"),
+    "python benchmarks/coupled_scaling.py --algorithms sweep --realizations 75 300 600 1200 4800 --dx 5e-6 --warps 4 "
+    "--tracks rigid ballasted-soft-pad --helpers 3 0 --out coupled_scaling.json":
+        ("options", "python benchmarks/coupled_scaling.py"),
     "python benchmarks/coupled_track.py --out coupled_track.json": ("options", "python benchmarks/coupled_track.py"),
     "ncu --kernel-name regex:coupled --launch-count 1 --section WarpStateStats --section SchedulerStats --section "
     "SourceCounters python benchmarks/coupled_scaling.py --steps-log2 14 --realizations 300 --warps 4 --tracks rigid "
@@ -190,6 +193,8 @@ COMMANDS = {
     "python benchmarks/cpu_full_run.py --repeats 3 --out cpu_full_run.json":
         ("options", "python benchmarks/cpu_full_run.py"),
     "OUT=DIR bash benchmarks/gpu_session.sh tests": ("ci", "the GPU machine's session script"),
+    # track.md: the moving load over discrete supports
+    "mdroll run --mode coupled --set track=ballasted-soft-pad --set track.parametric=true": ("options", "mdroll run"),
     # track.md: the track alone
     "mdroll track receptance --set track=ballasted-soft-pad --position midspan --out rec":
         ("run", "mdroll track receptance --set track=ballasted-soft-pad --position midspan --points 20 --out rec",

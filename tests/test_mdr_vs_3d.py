@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy import special
 
 from mdroll.bem import extruded, self_affine
 from mdroll.bem.solver import to_host
@@ -75,9 +76,18 @@ def test_linear_filters_reduce_to_the_mdr_filter_and_the_short_wave_limit():
     a, H = 5e-3, 0.7
     bands = np.arange(20, -1, -1)  # 100 mm to 1 mm
     profile = FromCallable(lambda q: np.abs(q) ** (-2.0 * H - 1.0), kind="profile")
-    for model in linear.MODELS:
+    for model in ("3d", "corrected", "line"):
         closed = linear.contact_filter(model, bands, a, 0.7 * a, H, corrugation=True)
         assert np.allclose(closed, mdr_contact_filter(bands, a, profile), atol=0.02), model
+    # the DPRS bed: the band average of (2 J1(q a)/(q a))^2 against the profile's q^(-2H-1), by numpy
+    lo, hi = wavelength_band_edges_q(bands)
+    dprs = linear.contact_filter("dprs", bands, a, 0.7 * a, H, corrugation=True)
+    for value, low, high in zip(dprs, lo, hi):
+        q = np.linspace(low, high, 4001)
+        weight = q ** (-2.0 * H - 1.0)
+        bessel = (2.0 * special.j1(q * a) / (q * a)) ** 2
+        assert value == pytest.approx(10.0 * math.log10(np.trapezoid(weight * bessel, q) / np.trapezoid(weight, q)),
+                                      abs=0.02)
     short = np.array([-5, 0])  # q a from 28 to 111: sin^2 averages to 1/2 over the lateral integral
     lo, hi = wavelength_band_edges_q(short)
     iso = linear.contact_filter("3d", short, a, a, H)
@@ -125,6 +135,22 @@ def test_study_at_test_size(device):
     assert len(before_dips) >= 2 and all(abs(measured[b] - linear_3d[b]) < 2.0 for b in before_dips)
     assert isotropic["variants"]["mdr"]["high"]["rel_stderr"] > 0
     assert {c["name"].split()[0] for c in record["claims"]} == {"(a)", "(b)"}
+    # the DPRS bed on the same surfaces: its measured filter follows its own closed form, (2 J1(q a)/(q a))^2
+    # band-averaged, in the bands clear of J1's zeros (a 48-position record fills the dips), and lies below
+    # the 3-D's there
+    dprs = dict(zip(bands, corrugation["filter"]["dprs"]))
+    linear_dprs = dict(zip(closed["bands"], closed["a"]["dprs"]))
+    lo, hi = wavelength_band_edges_q(bands)
+    roots = special.jn_zeros(1, 20) / sphere["geometry"]["semi_x"]
+    clear = [b for b, low, high in zip(bands, lo, hi) if not np.any((roots >= low) & (roots <= high))]
+    assert len(clear) >= 2 and all(abs(dprs[b] - linear_dprs[b]) < 1.5 for b in clear)
+    assert all(dprs[b] < measured[b] for b in clear)
+    assert corrugation["dprs"]["high"]["dB"] < -1.0 and sphere["dprs_bed"]["stiffness"] == pytest.approx(
+        2.0 * 50e3 / sphere["geometry"]["approach"], rel=1e-12)
+    assert any(row.startswith("| (a) | sphere | dprs |") for row in record["measurements"]["verdict_table"])
+    assert any(row.startswith("| (b) | sphere | dprs |") for row in record["measurements"]["filter_table"])
+    cnossos = record["measurements"]["closed_forms"]["cnossos"]["cases"][0]
+    assert len(cnossos["dprs_corrugation_dB"]) == len(cnossos["A3_dB"]) == len(cnossos["dprs_isotropic_dB"])
 
 
 def test_refined_lines_keep_their_spectrum_and_samples(device):

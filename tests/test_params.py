@@ -7,7 +7,8 @@ import pytest
 
 from mdroll.errors import ParameterError
 from mdroll import Params
-from mdroll.checks import check_nonnegative, check_number, check_positive, check_real
+from mdroll.checks import (check_nonnegative, check_number, check_positive, check_real,
+                           first_negative_or_nonfinite)
 from mdroll.ensemble.realizations import read_params
 
 
@@ -108,3 +109,9 @@ def test_the_number_checks_pass_real_numbers_of_every_kind_as_floats():
     values = [check_positive("a", 2), check_positive("a", np.int32(2)), check_nonnegative("a", 0.0),
               check_real("a", np.float32(-2.0)), check_number("H", 0.5, "in (0, 1)", lambda v: 0 < v < 1)]
     assert values == [2.0, 2.0, 0.0, -2.0, 0.5] and all(type(v) is float for v in values)
+
+
+@pytest.mark.parametrize("values, expected", [
+    ([0.0, 1.0, 2.0], None), ([0.0, np.nan, -1.0], 1), ([1.0, 2.0, -1e-300], 2), ([np.inf], 0), ([], None)])
+def test_the_spectrum_check_finds_the_first_bad_entry(values, expected):
+    assert first_negative_or_nonfinite(np.asarray(values, dtype=np.float64)) == expected

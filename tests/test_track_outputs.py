@@ -53,8 +53,9 @@ def test_vibration_spectra_are_the_filtered_force_record(device):
     result = run_ensemble(params, seed=3, realizations=2, mode="coupled", track=SOFT, wheel=wheel, device=device,
                           progress=False)
     lines = rough_lines(params, 3, 2, device=device)
-    prepared = prepare_lines(lines, params, "tree", "open", params.d0, device, h_max=H_BOUND_SIGMAS * params.h0)
-    force, _ = coupled_series(prepared, params, "tree", device, force_offset=params.F_N,
+    prepared = prepare_lines(lines, params, result.algorithm, "open", params.d0, device,
+                             h_max=H_BOUND_SIGMAS * params.h0)
+    force, _ = coupled_series(prepared, params, result.algorithm, device, force_offset=params.F_N,
                               compliance=contact_compliance(SOFT, wheel))
     u = force.numpy() if hasattr(force, "numpy") else np.asarray(force)
     np.testing.assert_allclose(psd(u, params.dx, window=True)[1].mean(axis=0)[1:], result.force_psd[1:], rtol=1e-8)

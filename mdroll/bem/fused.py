@@ -1,12 +1,14 @@
 """The constrained conjugate gradients of :func:`mdroll.bem.solver.constrained_cg` on CUDA, fused:
 the same iteration, on the same batch, in a few kernels per iteration replayed as a CUDA graph.
 
-Layout. The pressure p and the conjugate direction t live in the top-left n x n corner of zero-padded
-(B, 2n, 2n) buffers, so each convolution ``K * x`` is one batched 2-D real FFT of the padded grid
-(a cached cuFFT plan), the product with the kernel's real spectrum (scaled by 1 / (2n)^2) and one
-batched inverse FFT, with no padding or cropping copies; u = K p and r = K t stay in their padded
-outputs. Per-member scalars (the approach, G, the conjugacy ratio, the step tau, the residual, the
-iteration count and an ``active`` flag) stay on the device in a (B, fields) array.
+Layout. The pressure p and the conjugate direction t live in the first n columns of zero-padded
+(B, n, 2n) buffers. Each convolution ``K * x`` is three kernels: a batched real FFT of the n rows
+(cuFFT, length 2n), the column transform of :mod:`mdroll.bem.columns` (every column of the row
+spectra zero-padded, transformed, multiplied by the kernel's spectrum and transformed back in shared
+memory) and the batched inverse real FFT of the rows. The zero rows of the padding are never
+stored or transformed. u = K p and r = K t stay in
+their padded outputs. Per-member scalars (the approach, G, the conjugacy ratio, the step tau, the
+residual, the iteration count and an ``active`` flag) stay on the device in a (B, fields) array.
 
 One iteration (displacement control; load control adds the two passes in brackets):
 
@@ -15,21 +17,28 @@ One iteration (displacement control; load control adds the two passes in bracket
     p <- max(p - tau t, 0) (-tau g where it penetrates), sum p, sum |dp|, overlaps
     [ -> the load's scale;  p <- scale p, sum p, sum |dp|]  ->  residual, active.
 
-Each reduction is a kernel over (chunks, members) blocks writing per-chunk partial sums, then one
-block per member that adds them in a fixed order (the result does not depend on the batch) and
-updates the member's scalars. A member that converged (or hit the iteration cap) is skipped by every
-kernel, so it keeps its pressure. The host looks at the flags only after every :data:`CHECK_EVERY`
-iterations (one graph replay): no synchronisation inside the iteration.
+Each reduction is one kernel over (chunks, members) blocks writing per-chunk partial sums; the last
+block of a member to finish adds them in a fixed order (the result does not depend on the batch)
+and updates the member's scalars. A member that converged (or hit the iteration cap) is skipped by
+every kernel but the row FFTs, so it keeps its pressure. Each graph replay runs :data:`CHECK_EVERY`
+iterations and copies the scalars to pinned host memory; the host keeps two replays in flight and
+looks at the flags of the older one, so the device does not wait for the host.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ..errors import ParameterError
+from .columns import COLUMN_SOURCE, COLUMN_THREADS, COLUMNS, MAX_CELLS, column_rows, column_spectrum, shared_bytes
+
 #: Iterations per graph replay, between two looks at the members' convergence flags.
-CHECK_EVERY = 4
-#: Cells per block of the element-wise kernels (256 threads, two cells each).
-CELLS_PER_BLOCK = 512
+CHECK_EVERY = 8
+#: Threads per block of the element-wise kernels.
+THREADS = 256
+#: Cells of a batch up to which the element-wise kernels take one cell a thread (about the threads
+#: one wave of blocks holds); two above, so that larger batches launch half the blocks.
+ONE_CELL_A_THREAD = 2**18
 #: Partial sums per reduction.
 SUMS = 4
 
@@ -74,77 +83,30 @@ __device__ void block_sums(double v[SUMS], double* out, int stride) {
     for (long long c = (long long)blockIdx.x * THREADS + threadIdx.x; c < nn;                  \
          c += (long long)gridDim.x * THREADS) {                                                 \
         const long long i = c / n;                                                              \
-        const long long q = 4 * nn * b + 2 * n * i + (c - i * n);                               \
+        const long long q = 2 * nn * b + 2 * n * i + (c - i * n);                               \
         const long long e = nn * b + c;
 #define END_CELLS }
 #define CELLS CELLS_UNLESS(m[ACTIVE] == 0.0)
 // a member that converged and moves to the next rolling position
 #define ADVANCING (m[NEXT] == 0.0 || m[POSITION] + 1.0 >= m[STEPS])
-#define PARTIALS block_sums(v, part + (long long)b * SUMS * gridDim.x + blockIdx.x, gridDim.x)
+#define OWN_PARTIALS (part + (long long)b * SUMS * gridDim.x)
+#define PARTIALS block_sums(v, OWN_PARTIALS + blockIdx.x, gridDim.x)
+// the partial sums, then the member's scalars by its last block to finish
+#define REDUCE(STAGE)                                                                           \
+    PARTIALS;                                                                                   \
+    if (last_block(arrivals + b)) scalars(st + (long long)b * FIELDS, OWN_PARTIALS, gridDim.x, STAGE, load)
 
-extern "C" __global__ void contact_sums(const double* U, const double* P, const double* S, const double* st,
-                                        double* part, int n) {
-    CELLS
-        if (P[q] > 0.0) { v[0] += 1.0; v[1] += U[q] + S[e]; }
-    END_CELLS
-    PARTIALS;
-}
-
-extern "C" __global__ void gap_norm(const double* U, const double* P, const double* S, const double* st,
-                                    double* part, int n) {
-    CELLS
-        if (P[q] > 0.0) { const double g = U[q] + S[e] - m[APPROACH]; v[0] += g * g; }
-    END_CELLS
-    PARTIALS;
-}
-
-extern "C" __global__ void direction(const double* U, const double* P, const double* S, double* T,
-                                     const double* st, int n) {
-    CELLS
-        T[q] = P[q] > 0.0 ? (U[q] + S[e] - m[APPROACH]) + m[RATIO] * T[q] : 0.0;
-    END_CELLS
-}
-
-extern "C" __global__ void step_sums(const double* U, const double* R, const double* P, const double* S,
-                                     const double* T, const double* st, double* part, int n) {
-    CELLS
-        if (P[q] > 0.0) {
-            const double t = T[q], r = R[q];
-            v[0] += r * t; v[1] += (U[q] + S[e] - m[APPROACH]) * t; v[2] += r; v[3] += t;
-        }
-    END_CELLS
-    PARTIALS;
-}
-
-// the step; the new pressure to P (displacement control) or, unscaled, over u in U (load control)
-extern "C" __global__ void update(double* U, double* P, const double* S, const double* T, const double* st,
-                                  double* part, int n, int load) {
-    CELLS
-        const double p = P[q], tau = m[TAU];
-        double next = fmax(p - tau * T[q], 0.0);
-        const double g = U[q] + S[e] - m[APPROACH];
-        if (next == 0.0 && g < 0.0) { next = next - tau * g; v[2] += 1.0; }
-        v[0] += next; v[1] += fabs(next - p); v[3] += next > 0.0;
-        if (load) U[q] = next; else P[q] = next;
-    END_CELLS
-    PARTIALS;
-}
-
-extern "C" __global__ void rescale(const double* U, double* P, const double* st, double* part, int n) {
-    CELLS
-        const double next = m[SCALE] * U[q];
-        v[0] += next; v[1] += fabs(next - P[q]); v[3] += next > 0.0;
-        P[q] = next;
-    END_CELLS
-    PARTIALS;
-}
-
-extern "C" __global__ void multiply(double2* C, const double* spectrum, long long half, long long total) {
-    for (long long k = (long long)blockIdx.x * blockDim.x + threadIdx.x; k < total;
-         k += (long long)gridDim.x * blockDim.x) {
-        const double w = spectrum[k % half];
-        C[k].x *= w; C[k].y *= w;
+// whether this block is the last of the member's blocks to arrive (then the counter is reset)
+__device__ bool last_block(unsigned int* arrivals) {
+    __shared__ bool last;
+    __threadfence();
+    __syncthreads();
+    if (threadIdx.x == 0) {
+        last = atomicAdd(arrivals, 1u) == gridDim.x - 1;
+        if (last) *arrivals = 0u;
     }
+    __syncthreads();
+    return last;
 }
 
 // the end of an iteration: residual, count, force and area; a member that stops is flagged NEXT
@@ -159,16 +121,13 @@ __device__ void finish(double* m, const double* s) {
     m[NEXT] = 1.0 - m[ACTIVE];
 }
 
-// one block per member: the partial sums added in a fixed order, then the member's scalars
-extern "C" __global__ void scalars(double* st, const double* part, int chunks, int stage, int load) {
-    double* m = st + (long long)blockIdx.x * FIELDS;
-    if (m[ACTIVE] == 0.0) return;
-    const double* own = part + (long long)blockIdx.x * SUMS * chunks;
+// by one block: the member's partial sums added in a fixed order, then its scalars
+__device__ void scalars(double* m, const double* own, int chunks, int stage, int load) {
     __shared__ double sums[SUMS];
     double v[SUMS];
     for (int k = 0; k < SUMS; ++k) {
         v[k] = 0.0;
-        for (int c = threadIdx.x; c < chunks; c += THREADS) v[k] += own[k * chunks + c];
+        for (int c = threadIdx.x; c < chunks; c += THREADS) v[k] += __ldcg(own + k * chunks + c);
     }
     block_sums(v, sums, 1);
     __syncthreads();
@@ -190,6 +149,65 @@ extern "C" __global__ void scalars(double* st, const double* part, int chunks, i
     } else {                          // after the rescaling to the load
         finish(m, s);
     }
+}
+
+extern "C" __global__ void contact_sums(const double* U, const double* P, const double* S, double* st,
+                                        double* part, unsigned int* arrivals, int n, int load) {
+    CELLS
+        if (P[q] > 0.0) { v[0] += 1.0; v[1] += U[q] + S[e]; }
+    END_CELLS
+    REDUCE(0);
+}
+
+extern "C" __global__ void gap_norm(const double* U, const double* P, const double* S, double* st,
+                                    double* part, unsigned int* arrivals, int n, int load) {
+    CELLS
+        if (P[q] > 0.0) { const double g = U[q] + S[e] - m[APPROACH]; v[0] += g * g; }
+    END_CELLS
+    REDUCE(1);
+}
+
+extern "C" __global__ void direction(const double* U, const double* P, const double* S, double* T,
+                                     const double* st, int n) {
+    CELLS
+        T[q] = P[q] > 0.0 ? (U[q] + S[e] - m[APPROACH]) + m[RATIO] * T[q] : 0.0;
+    END_CELLS
+}
+
+extern "C" __global__ void step_sums(const double* U, const double* R, const double* P, const double* S,
+                                     const double* T, double* st, double* part, unsigned int* arrivals, int n,
+                                     int load) {
+    CELLS
+        if (P[q] > 0.0) {
+            const double t = T[q], r = R[q];
+            v[0] += r * t; v[1] += (U[q] + S[e] - m[APPROACH]) * t; v[2] += r; v[3] += t;
+        }
+    END_CELLS
+    REDUCE(2);
+}
+
+// the step; the new pressure to P (displacement control) or, unscaled, over u in U (load control)
+extern "C" __global__ void update(double* U, double* P, const double* S, const double* T, double* st,
+                                  double* part, unsigned int* arrivals, int n, int load) {
+    CELLS
+        const double p = P[q], tau = m[TAU];
+        double next = fmax(p - tau * T[q], 0.0);
+        const double g = U[q] + S[e] - m[APPROACH];
+        if (next == 0.0 && g < 0.0) { next = next - tau * g; v[2] += 1.0; }
+        v[0] += next; v[1] += fabs(next - p); v[3] += next > 0.0;
+        if (load) U[q] = next; else P[q] = next;
+    END_CELLS
+    REDUCE(3);
+}
+
+extern "C" __global__ void rescale(const double* U, double* P, double* st, double* part,
+                                   unsigned int* arrivals, int n, int load) {
+    CELLS
+        const double next = m[SCALE] * U[q];
+        v[0] += next; v[1] += fabs(next - P[q]); v[3] += next > 0.0;
+        P[q] = next;
+    END_CELLS
+    REDUCE(4);
 }
 
 // rolling: a member that converged records its position's results and moves one row on: its pressure
@@ -252,68 +270,78 @@ class FusedCG:
         import cupy
         from cupyx.scipy.fft import get_fft_plan
 
+        if op.n > MAX_CELLS:
+            raise ParameterError(f"the CUDA solver takes windows of at most {MAX_CELLS} cells across, got {op.n} "
+                                 f"(solve it on device 'cpu')")
         self.cp, self.n, self.batch, self.load = cupy, op.n, batch, bool(load_control)
         n = op.n
-        padded = (batch, 2 * n, 2 * n)
+        padded = (batch, n, 2 * n)
         self.p, self.t = cupy.zeros(padded), cupy.zeros(padded)
         self.u, self.r = cupy.empty(padded), cupy.empty(padded)
-        self.spectra = cupy.empty((batch, 2 * n, n + 1), dtype=cupy.complex128)
+        self.spectra = cupy.empty((batch, n, n + 1), dtype=cupy.complex128)
         self.separation = cupy.empty((batch, n, n))
         self.state = cupy.zeros((batch, FIELDS))
-        self.chunks = -(-n * n // CELLS_PER_BLOCK)
+        pinned = cupy.cuda.alloc_pinned_memory(self.state.nbytes)
+        self.flags = np.frombuffer(pinned, np.float64, batch * FIELDS).reshape(batch, FIELDS)
+        cells = THREADS * (1 if batch * n * n <= ONE_CELL_A_THREAD else 2)
+        self.chunks = -(-n * n // cells)
         self.partials = cupy.empty((batch, SUMS, self.chunks))
-        self.kernel = cupy.ascontiguousarray(op.spectrum / (4.0 * n * n))
+        self.arrivals = cupy.zeros(batch, dtype=cupy.uint32)
+        rows = column_rows(n)
+        self.bits = rows.bit_length() - 1
+        self.kernel = cupy.asarray(column_spectrum(op, rows))
+        self.twiddle = cupy.asarray(np.exp(-2j * np.pi * np.arange(rows) / rows))
         self.cell_area = op.dx * op.dx
-        self.forward = get_fft_plan(self.p, axes=(-2, -1), value_type="R2C")
-        self.inverse = get_fft_plan(self.spectra, shape=(2 * n, 2 * n), axes=(-2, -1), value_type="C2R")
-        module = cupy.RawModule(code=SOURCE)
+        self.forward = get_fft_plan(self.p, axes=(-1,), value_type="R2C")
+        self.inverse = get_fft_plan(self.spectra, shape=(2 * n,), axes=(-1,), value_type="C2R")
+        module = cupy.RawModule(code=SOURCE + COLUMN_SOURCE)
         self.kernels = {name: module.get_function(name) for name in (
-            "contact_sums", "gap_norm", "direction", "step_sums", "update", "rescale", "multiply", "scalars",
+            "contact_sums", "gap_norm", "direction", "step_sums", "update", "rescale", "columns",
             "advance_cells", "advance_copy", "advance_state")}
+        self.shared = shared_bytes(rows)
+        if self.shared > 48 * 1024:
+            self.kernels["columns"].max_dynamic_shared_size_bytes = self.shared
         self.stream = cupy.cuda.Stream()
+        self.events = [cupy.cuda.Event(disable_timing=True) for _ in range(2)]
         self.graph = None
 
     def convolve(self, source, target):
-        """``target = K * source`` on the padded grids (the crop is implicit: only the top-left n x n
-        of ``target`` is read)."""
+        """``target = K * source`` on the padded grids for the active members (only the first n
+        columns of ``target`` are read)."""
         from cupy.cuda import cufft
 
         self.forward.fft(source, self.spectra, cufft.CUFFT_FORWARD)
-        total = self.spectra.size
-        self.kernels["multiply"](((total + 255) // 256,), (256,),
-                                 (self.spectra, self.kernel, np.int64(self.kernel.size), np.int64(total)))
+        self.kernels["columns"]((-(-(self.n + 1) // COLUMNS), self.batch), (COLUMN_THREADS,),
+                                (self.spectra, self.kernel, self.twiddle, self.state, np.int32(self.n),
+                                 np.int32(self.bits)),
+                                shared_mem=self.shared)
         self.inverse.fft(self.spectra, target, cufft.CUFFT_INVERSE)
 
-    def _reduce(self, stage):
-        self.kernels["scalars"]((self.batch,), (256,),
-                                (self.state, self.partials, np.int32(self.chunks), np.int32(stage), np.int32(self.load)))
-
     def _iteration(self):
-        grid, block, n = (self.chunks, self.batch), (256,), np.int32(self.n)
+        grid, block, n, load = (self.chunks, self.batch), (THREADS,), np.int32(self.n), np.int32(self.load)
         k, u, p, s, t, st, part = self.kernels, self.u, self.p, self.separation, self.t, self.state, self.partials
+        arrivals = self.arrivals
         self.convolve(p, u)
         if self.load:
-            k["contact_sums"](grid, block, (u, p, s, st, part, n))
-            self._reduce(0)
-        k["gap_norm"](grid, block, (u, p, s, st, part, n))
-        self._reduce(1)
+            k["contact_sums"](grid, block, (u, p, s, st, part, arrivals, n, load))
+        k["gap_norm"](grid, block, (u, p, s, st, part, arrivals, n, load))
         k["direction"](grid, block, (u, p, s, t, st, n))
         self.convolve(t, self.r)
-        k["step_sums"](grid, block, (u, self.r, p, s, t, st, part, n))
-        self._reduce(2)
-        k["update"](grid, block, (u, p, s, t, st, part, n, np.int32(self.load)))
-        self._reduce(3)
+        k["step_sums"](grid, block, (u, self.r, p, s, t, st, part, arrivals, n, load))
+        k["update"](grid, block, (u, p, s, t, st, part, arrivals, n, load))
         if self.load:
-            k["rescale"](grid, block, (u, p, st, part, n))
-            self._reduce(4)
+            k["rescale"](grid, block, (u, p, st, part, arrivals, n, load))
 
     def _replay(self):
-        """:data:`CHECK_EVERY` iterations: the captured graph (captured on the first call)."""
+        """:data:`CHECK_EVERY` iterations and the scalars' copy to ``flags``: the captured graph
+        (captured on the first call)."""
         if self.graph is None:
             self.stream.begin_capture()
             try:
                 for _ in range(CHECK_EVERY):
                     self._iteration()
+                self.cp.cuda.runtime.memcpyAsync(self.flags.ctypes.data, self.state.data.ptr, self.state.nbytes,
+                                                 self.cp.cuda.runtime.memcpyDeviceToHost, self.stream.ptr)
             finally:
                 self.graph = self.stream.end_capture()
         self.graph.launch(self.stream)
@@ -327,20 +355,24 @@ class FusedCG:
         state[:, TOL], state[:, MAX_ITER], state[:, CELL_AREA] = tol, max_iter, self.cell_area
         self.state.set(state)
         self.separation[...] = separation
-        self.p[:, :n, :n] = pressure
-        self.t[:, :n, :n] = 0.0
+        self.p[:, :, :n] = pressure
+        self.t[:, :, :n] = 0.0
 
     def __call__(self, separation, control, pressure, tol, max_iter):
         cp, n = self.cp, self.n
         with self.stream:
             self._start(separation, control, pressure, tol, max_iter)
-            done = 0
-            while done < max_iter:
-                self._replay()
-                done += CHECK_EVERY
-                if not bool(self.state[:, ACTIVE].any()):
+            replays, launched, seen = -(-max_iter // CHECK_EVERY), 0, 0
+            while seen < launched or launched == 0:
+                while launched < min(seen + 2, replays):
+                    self._replay()
+                    self.events[launched % 2].record(self.stream)
+                    launched += 1
+                self.events[seen % 2].synchronize()
+                seen += 1
+                if not self.flags[:, ACTIVE].any():
                     break
-            result = (self.p[:, :n, :n].copy(), self.state[:, APPROACH].copy(),
+            result = (self.p[:, :, :n].copy(), self.state[:, APPROACH].copy(),
                       self.state[:, ITERATIONS].astype(cp.int64), self.state[:, RESIDUAL].copy())
         self.stream.synchronize()
         return result
@@ -361,7 +393,7 @@ class FusedRoll(FusedCG):
 
     def _iteration(self):
         super()._iteration()
-        grid, block, n, k = (self.chunks, self.batch), (256,), np.int32(self.n), self.kernels
+        grid, block, n, k = (self.chunks, self.batch), (THREADS,), np.int32(self.n), self.kernels
         length, width = self.surface.shape[1:]
         k["advance_cells"](grid, block, (self.p, self.u, self.separation, self.t, self.surface, self.gap, self.state,
                                          self.partials, n, np.int32(length), np.int32(width), np.int32(self.start),
@@ -378,15 +410,16 @@ class FusedRoll(FusedCG):
             self._start(separation, control, pressure, tol, max_iter, self.steps)
             while True:
                 self._replay()
-                flags = self.state[:, ACTIVE:LOST + 1].get()
+                self.stream.synchronize()
+                flags = self.flags[:, ACTIVE:LOST + 1].copy()
                 lost = np.flatnonzero(flags[:, LOST - ACTIVE])
                 if lost.size:
                     index = cp.asarray(lost)
-                    self.p[index, :n, :n] = fresh(self.separation)[index]
+                    self.p[index, :, :n] = fresh(self.separation)[index]
                     self.state[index, LOST] = 0.0
                     self.state[index, ACTIVE] = 1.0
                 elif not flags[:, 0].any():
                     break
-            out, last = self.out.get(), self.p[:, :n, :n].get()
+            out, last = self.out.get(), self.p[:, :, :n].get()
         force, approach, area, iterations, residual = out.transpose(1, 0, 2)
         return force, approach, area, iterations.astype(np.int64), residual, last

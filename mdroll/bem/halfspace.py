@@ -51,12 +51,16 @@ def love_coefficient(x, y, half_x, half_y, E_star):
     return total / (np.pi * E_star)
 
 
-def padded_kernel(n, dx, E_star):
-    """The influence coefficients of an n x n grid of square cells (side dx, m) on the 2n x 2n
-    padded grid, lag ``i`` at index ``i mod 2n`` for ``-n < i < n`` (the lag n, never reached by
-    pressure on the first n x n cells, takes -n). Returns (2n, 2n) float64 (m/Pa)."""
-    lags = np.fft.fftfreq(2 * n, 1.0 / (2 * n)) * dx
-    return love_coefficient(lags[:, None], lags[None, :], 0.5 * dx, 0.5 * dx, E_star)
+def padded_kernel(n, dx, E_star, rows=None):
+    """The influence coefficients of an n x n grid of square cells (side dx, m) on the padded
+    grid of ``rows`` (default 2n; at least 2n - 1) by 2n cells, lag ``i`` at index ``i mod rows``
+    (``i mod 2n`` along axis 1) for ``-n < i < n``; the other indices, never reached by pressure on
+    the first n x n cells, hold the lags of :func:`numpy.fft.fftfreq`. Returns (rows, 2n) float64
+    (m/Pa)."""
+    rows = 2 * n if rows is None else rows
+    lags_x = np.fft.fftfreq(rows, 1.0 / rows) * dx
+    lags_y = np.fft.fftfreq(2 * n, 1.0 / (2 * n)) * dx
+    return love_coefficient(lags_x[:, None], lags_y[None, :], 0.5 * dx, 0.5 * dx, E_star)
 
 
 class HalfSpace:

@@ -83,6 +83,15 @@ def indenter_gap(n, dx, radius, radius_y, xp=np):
     return xp.asarray(x[:, None] ** 2 / (2.0 * radius) + x[None, :] ** 2 / (2.0 * radius_y))
 
 
+@functools.lru_cache(maxsize=8)
+def device_gap(device, n, dx, radius, radius_y):
+    """:func:`indenter_gap` on ``device`` (NumPy or CuPy), kept for the next solve of that geometry
+    (read only)."""
+    xp, context = array_module(device)
+    with context:
+        return indenter_gap(n, dx, radius, radius_y, xp)
+
+
 def _positive(name, value):
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
             or not math.isfinite(value) or value <= 0:
@@ -270,7 +279,7 @@ def solve(heights, dx, radius, *, E_star, approach=None, load=None, radius_y=Non
     with context:
         surface = xp.asarray(heights, dtype=xp.float64).reshape(-1, n, n)
         op, solver = workspace(device, n, dx, E_star, surface.shape[0], load_control)
-        separation = indenter_gap(n, dx, radius, radius_y, xp) - surface
+        separation = device_gap(device, n, dx, radius, radius_y) - surface
         if initial is None:
             start = initial_pressure(op, separation, control, load_control, math.sqrt(radius * radius_y))
         else:

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..devices import is_cuda, warp
-from ..kernels.dynamics import COUPLED_LANES, COUPLED_WARPS, INTEGRATORS, Modes, coupled_track, with_integrator
+from ..kernels.dynamics import (COUPLED_HELPERS, COUPLED_LANES, COUPLED_WARPS, INTEGRATORS, Modes, coupled_track,
+                                with_helpers, with_integrator)
 from ..params import ParameterError, Params
 from ..forces.indenter import contact_constants
 from ..forces.registry import coupled_entry
@@ -55,9 +56,29 @@ def coupled_layout(rows: int, device: str, warps: int | None = None) -> tuple[in
     return -(-rows // per_block), COUPLED_LANES * warps
 
 
+#: Realizations a multiprocessor up to which a coupled launch on CUDA prepares its steps with
+#: helper warps (:func:`~mdroll.kernels.dynamics.with_helpers`, where the algorithm can): fewer
+#: leave the GPU's schedulers idle, so that helpers cost no time of the stepping warps'; more
+#: fill them, and the helpers' work would.
+HELPED_PER_MULTIPROCESSOR = 4
+
+
+def coupled_helpers(rows: int, device: str, helpers: int | None = None) -> int:
+    """Helper warps a realization in a coupled launch on CUDA of ``rows`` realizations: by
+    default :data:`~mdroll.kernels.dynamics.COUPLED_HELPERS` up to
+    :data:`HELPED_PER_MULTIPROCESSOR` realizations a multiprocessor, none beyond; 0 to 31."""
+    if helpers is not None:
+        if not 0 <= helpers <= 31:
+            raise ParameterError(f"helpers = {helpers}: allowed are 0 to 31 helper warps a realization")
+        return helpers
+    if not is_cuda(device):
+        return 0
+    return COUPLED_HELPERS if rows <= HELPED_PER_MULTIPROCESSOR * warp().get_device(device).sm_count else 0
+
+
 def coupled_series(prepared, params: Params, algorithm: str, device: str, d_start: float | None = None,
                    force_offset: float = 0.0, integrator: str = "semi-implicit", compliance=(None, True),
-                   warps: int | None = None):
+                   warps: int | None = None, helpers: int | None = None):
     """Force (N, less ``force_offset``) and acceleration d'' (m/s^2) series of eq 13 for
     prepared lines (:func:`~mdroll.forces.prepare.prepare_lines`), by the coupled kernel of
     the algorithm's registry entry; the wheel starts at indentation ``d_start`` (m, default d0)
@@ -67,7 +88,9 @@ def coupled_series(prepared, params: Params, algorithm: str, device: str, d_star
     :func:`contact_compliance`'s pair; with a state space the contact point moves
     (:func:`~mdroll.kernels.dynamics.coupled_track`, its modes stepped exactly over dt) and
     ``accel`` is the wheel mass's (zero for a modal wheel). ``warps``: realizations a block on
-    CUDA (:func:`coupled_layout`)."""
+    CUDA (:func:`coupled_layout`). ``helpers``: helper warps a realization on CUDA
+    (:func:`coupled_helpers`); with any, or on the CPU, an algorithm that can prepares its
+    steps ahead (:func:`~mdroll.kernels.dynamics.with_helpers`), one realization a block."""
     wp = warp()
     kernel, lines = coupled_entry(algorithm).coupled(prepared)
     kernel = with_integrator(kernel, integrator)
@@ -83,6 +106,10 @@ def coupled_series(prepared, params: Params, algorithm: str, device: str, d_star
         kernel = coupled_track(kernel)
         state = wp.zeros((rows, form.order), dtype=wp.vec2d, device=device)
     blocks, block_dim = coupled_layout(rows, device, warps)
+    helpers = coupled_helpers(rows, device, helpers)
+    helped = with_helpers(kernel)
+    if helped is not None and (helpers > 0 or not is_cuda(device)):
+        kernel, blocks, block_dim = helped, rows, COUPLED_LANES * (1 + helpers)
     wp.launch_tiled(
         kernel,
         dim=[blocks],

@@ -7,7 +7,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..devices import is_cuda, resolve_device, warp
+from ..devices import is_cuda, resolve_device, to_warp, warp
 from ..arguments import check_params
 from ..errors import ParameterError
 from ..params import Params
@@ -151,6 +151,30 @@ def random_spectra(params: Params, seed: int, realizations, device: str, roughne
         wp.launch(random_phase_spans, dim=(indices.size, -(-bins // CPU_SPAN)),
                   inputs=[keys, amplitudes, nyquist, scales, CPU_SPAN, spectrum], device=device)
     return spectrum
+
+
+def parametric_line(params: Params, track, device: str):
+    """The moving load's equivalent roughness (:func:`mdroll.track.parametric.equivalent_roughness`
+    at the static load F_N, x_i = i dx, x = 0 above a support) as a Warp array on ``device``, for
+    :func:`add_line`; None unless ``track`` asks for it (``track.parametric``)."""
+    if track is None or not track.parametric:
+        return None
+    from ..track.parametric import equivalent_roughness
+
+    line = equivalent_roughness(track, params.F_N, np.arange(params.n_points) * params.dx)
+    return warp().array(line, dtype=warp().float64, device=device)
+
+
+def add_line(lines, line, device: str):
+    """``lines`` (R, n) with the deterministic ``line`` (n) added to every row, in place (a Warp
+    view of them); ``lines`` unchanged where ``line`` is None."""
+    if line is None:
+        return lines
+    from ..kernels.lines import add_to_rows
+
+    lines = to_warp(lines, device)
+    warp().launch(add_to_rows, dim=lines.shape, inputs=[lines, line], device=device)
+    return lines
 
 
 @functools.lru_cache(maxsize=8)

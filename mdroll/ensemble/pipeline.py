@@ -31,7 +31,7 @@ from ..forces.steps import BOUNDARIES
 from .batching import check_batch_fits, check_run_fits, default_batch
 from .checkpoint import RunTotals
 from .coupled import contact_compliance, coupled_series
-from .lines import check_seed, realization_indices, rough_lines
+from .lines import add_line, check_seed, parametric_line, realization_indices, rough_lines
 from ..roughness.kinds import check_spectrum
 from ..roughness.line_grid import from_params, line_rms
 from .result import EnsembleResult
@@ -155,7 +155,8 @@ def run_ensemble(
         only: the contact point then moves with the rail's fitted state space (the wheel
         standing above a sleeper) and a modal wheel's modes
         (:func:`mdroll.ensemble.coupled.contact_compliance`); the roughness moves under a
-        stationary wheel. The result records them; the wheel and rail vibration spectra follow
+        stationary wheel. A track with ``parametric = True`` adds the moving load's equivalent
+        roughness (:func:`mdroll.ensemble.lines.parametric_line`) to every line. The result records them; the wheel and rail vibration spectra follow
         from the force's (:meth:`EnsembleResult.vibration`, :mod:`mdroll.ensemble.vibration`).
 
     Returns
@@ -180,7 +181,7 @@ def run_ensemble(
     check_choice("boundary", boundary, BOUNDARIES)
     if wheel is not None:
         wheel.check_run_mass(params.m)
-    compliance = contact_compliance(track, wheel)
+    compliance = contact_compliance(track and track.structure(), wheel)
     if mode == "decoupled" and compliance[0] is not None:
         raise ParameterError("track and wheel other than rigid are not allowed with mode = 'decoupled': "
                              "use mode = 'coupled' (the frequency-domain chain is mdroll.track.linear_chain)")
@@ -203,6 +204,8 @@ def run_ensemble(
         key["integrator"] = integrator
     if compliance[0] is not None:
         key["track"], key["wheel"] = (dataclasses.asdict(x) if x else None for x in (track, wheel))
+        if key["track"] and not key["track"]["parametric"]:  # the key of a plain track is the one written before the option existed
+            del key["track"]["parametric"]
     if roughness is None and params.roughness != "powerlaw":
         roughness = from_params(params)  # read (a table file) once, not per batch
     if roughness is not None:
@@ -219,7 +222,9 @@ def run_ensemble(
     totals.batch = int(batch)
     check_batch_fits(params, min(totals.batch, len(indices)), device, mode)
     d0 = params.d0
-    h_bound = H_BOUND_SIGMAS * line_rms(params, roughness)
+    excitation = parametric_line(params, track, device)
+    h_bound = H_BOUND_SIGMAS * line_rms(params, roughness) + (0.0 if excitation is None else
+                                                              float(np.max(np.abs(excitation.numpy()))))
     timings = totals.timings
     bar = progress_bar(len(indices), progress)
     bar.update(totals.done)
@@ -230,7 +235,8 @@ def run_ensemble(
     def series_moments(idx, clock, serial=contextlib.nullcontext()):
         """Lines -> force (and response) -> sums and PSD moments of the realizations ``idx``;
         the coupled response inside ``serial``."""
-        lines = clock("generate", lambda: to_warp(rough_lines(params, seed, idx, device=device, roughness=roughness), device))
+        lines = clock("generate", lambda: add_line(to_warp(rough_lines(params, seed, idx, device=device,
+                                                                       roughness=roughness), device), excitation, device))
         prepared = clock("build", lambda: prepare_lines(lines, params, algorithm, boundary, d0, device, leaf_size, h_bound))
         if decoupled:
             out = buffers.empty("force", (len(idx), prepared.steps), warp().float64, device)

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from .._version import __version__
+from ..checks import first_negative_or_nonfinite
 from ..files import atomic_write
 from ..errors import ParameterError
 from ..params import Params
@@ -243,9 +244,8 @@ def _check_content(result: EnsembleResult, where) -> None:
         if expected is not None and not np.allclose(values, expected, rtol=1e-12, atol=0.0):
             raise ParameterError(f"{where}: {name} is not the grid of {steps} steps of dx = {result.params.dx!r} m "
                                  f"(q_k = 2 pi k / (steps dx){', omega = q v0' if name == 'omega' else ''})")
-        bad = ~np.isfinite(values) | (values < 0)
-        if bad.any():
-            i = int(np.argmax(bad))
+        i = first_negative_or_nonfinite(values)
+        if i is not None:
             raise ParameterError(f"{where}: {name}[{i}] = {values[i]!r}; a spectrum and its standard error must be "
                                  "finite and >= 0")
 

@@ -47,7 +47,7 @@ WHEEL_POSITION = "sleeper"
 def rail_form(track: Track):
     """The rail's modal state space the coupled run steps (:func:`mdroll.track.fit.rail_modal_form`
     at :data:`WHEEL_POSITION`, called as the run calls it: one fit, cached)."""
-    return rail_modal_form(track, WHEEL_POSITION)
+    return rail_modal_form(track.structure(), WHEEL_POSITION)
 
 
 def structures_record(track: Track | None, wheel: Wheel | None) -> tuple[dict, dict]:

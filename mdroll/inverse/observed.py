@@ -26,6 +26,7 @@ import numpy as np
 from ..arguments import check_integer
 from ..ensemble.result import EnsembleResult
 from ..ensemble.vibration import structures_of
+from ..checks import first_negative_or_nonfinite
 from ..files import atomic_write
 from ..errors import ParameterError
 from ..params import Params
@@ -142,9 +143,8 @@ def _check_frequencies(omega: np.ndarray) -> None:
 
 
 def _check_values(name: str, values: np.ndarray, omega: np.ndarray) -> None:
-    bad = ~np.isfinite(values) | (values < 0)
-    if bad.any():
-        i = int(np.argmax(bad))
+    i = first_negative_or_nonfinite(values)
+    if i is not None:
         raise ParameterError(f"{name} at row {i} (omega = {omega[i]:.6g} rad/s) is {values[i]!r}: a {name} must be "
                              "finite and >= 0")
 

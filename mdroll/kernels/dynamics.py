@@ -22,7 +22,8 @@ from typing import Any
 import warp as wp
 
 from .common import Contact
-from .intrinsics import row_address, store_float, warp_sum_float, warp_sum_float_pair
+from .intrinsics import (backoff, fence_block, row_address, set_shared_pair, set_shared_volatile, shared_pair,
+                         shared_volatile, store_float, sync_block, sync_warp, warp_sum_float, warp_sum_float_pair)
 
 #: Lanes sharing one realization in the coupled dynamics on CUDA: one whole warp, so that a step's
 #: sum is a butterfly of warp shuffles. Warp runs tiles with one thread on the CPU: one lane there.
@@ -36,6 +37,27 @@ COUPLED_WARPS = 4
 #: The time steps of eq 13: the semi-implicit (symplectic) Euler step, and forward Euler, the
 #: thesis's scheme, for the coupling study only (module docstring).
 INTEGRATORS = ("semi-implicit", "forward-euler")
+
+#: Helper warps a realization on CUDA in the kernels whose steps are prepared ahead
+#: (:func:`coupled_dynamics`'s ``prepared``): with the stepping warp, a block of four.
+COUPLED_HELPERS = 3
+
+#: Registers a lane of the helped kernels may use: low enough for the blocks of a batch that
+#: leaves the GPU idle (:data:`COUPLED_HELPERS`) to fit its multiprocessors at once.
+HELPED_REGISTERS = None
+
+#: Steps ahead of the stepping warp that a step's force is prepared, from the indentation then
+#: and the two steps before; the first ``PREPARED_AHEAD + 2`` steps are summed directly.
+PREPARED_AHEAD = 8
+
+#: Steps a block's shared ring holds (a power of two above PREPARED_AHEAD + 2): the
+#: indentations, each with its step (plus one, 0 for none), the prepared steps (8 words each)
+#: and the step each holds (plus one).
+RING = 16
+RING_WORDS = 11 * RING
+
+#: A prepared step, as the algorithm's ``prepare`` returns it and its ``prepared_force`` reads it.
+PreparedSlot = wp.types.vector(length=8, dtype=wp.float64)
 
 # (lines_type, lane_force, row_setup) of each kernel made, and every kernel made, by its arguments
 _MADE_FROM: dict = {}
@@ -56,21 +78,107 @@ class Modes:
     n: int
 
 
+#: Modes a lane keeps in registers over the steps (on CUDA 4 x 32 = 128 modes a realization);
+#: the rest in the state array, read and written every step.
+HELD_MODES = 4
+held_modes = wp.types.vector(length=6 * HELD_MODES, dtype=wp.float64)
+
+
 @wp.func
-def modal_step(modes: Modes, state: wp.array2d(dtype=wp.vec2d), r: int, u: wp.float64, lane: int, lanes: int):
-    """Steps the modes ``lane, lane + lanes, ...`` of realization r (their complex states
-    ``state[r, k]``) over one time step under the force u (N), held over the step; returns
-    their part of the next step's free output ``2 Re sum_k phi_k q_k`` (m): the parts of all
-    lanes sum to the output the modes would give one step later under no force."""
+def held_coefficients(modes: Modes, lane: int, lanes: int) -> held_modes:
+    """The zero states and the step's coefficients ``(phi_re, phi_im, gamma_re, gamma_im)`` of
+    this lane's first :data:`HELD_MODES` modes, in registers for :func:`modal_step`."""
+    held = held_modes()
+    for j in range(HELD_MODES):
+        k = lane + j * lanes
+        if k < modes.n:
+            held[6 * j + 2] = modes.phi_re[k]
+            held[6 * j + 3] = modes.phi_im[k]
+            held[6 * j + 4] = modes.gamma_re[k]
+            held[6 * j + 5] = modes.gamma_im[k]
+    return held
+
+
+@wp.func
+def stepped_mode(modes: Modes, k: int, q: wp.vec2d, u: wp.float64) -> wp.vec2d:
+    """Mode k's complex state q over one time step under the force u (N)."""
+    return wp.vec2d(modes.phi_re[k] * q[0] - modes.phi_im[k] * q[1] + modes.gamma_re[k] * u,
+                    modes.phi_re[k] * q[1] + modes.phi_im[k] * q[0] + modes.gamma_im[k] * u)
+
+
+@wp.func
+def free_part(modes: Modes, k: int, q: wp.vec2d) -> wp.float64:
+    """Mode k's part ``2 Re phi_k q_k`` of the next step's free output (m)."""
+    return wp.float64(2.0) * (modes.phi_re[k] * q[0] - modes.phi_im[k] * q[1])
+
+
+@wp.func
+def modal_step(modes: Modes, state: wp.array2d(dtype=wp.vec2d), r: int, u: wp.float64, lane: int, lanes: int,
+               held: held_modes):
+    """Steps the modes ``lane, lane + lanes, ...`` of realization r over one time step under
+    the force u (N), held over the step: the first :data:`HELD_MODES` in ``held`` (each its
+    state re, im and :func:`held_coefficients`), the others in ``state[r, k]``. Returns their part of the next step's free output
+    ``2 Re sum_k phi_k q_k`` (m), the parts of all lanes summing to the output the modes would
+    give one step later under no force, and ``held`` stepped."""
     free = wp.float64(0.0)
     two = wp.float64(2.0)
-    for k in range(lane, modes.n, lanes):
-        q = state[r, k]
-        re = modes.phi_re[k] * q[0] - modes.phi_im[k] * q[1] + modes.gamma_re[k] * u
-        im = modes.phi_re[k] * q[1] + modes.phi_im[k] * q[0] + modes.gamma_im[k] * u
-        state[r, k] = wp.vec2d(re, im)
-        free += two * (modes.phi_re[k] * re - modes.phi_im[k] * im)
-    return free
+    for j in range(HELD_MODES):
+        if lane + j * lanes < modes.n:
+            re = held[6 * j + 2] * held[6 * j] - held[6 * j + 3] * held[6 * j + 1] + held[6 * j + 4] * u
+            im = held[6 * j + 2] * held[6 * j + 1] + held[6 * j + 3] * held[6 * j] + held[6 * j + 5] * u
+            held[6 * j] = re
+            held[6 * j + 1] = im
+            free += two * (held[6 * j + 2] * re - held[6 * j + 3] * im)
+    for k in range(lane + HELD_MODES * lanes, modes.n, lanes):
+        q = stepped_mode(modes, k, state[r, k], u)
+        state[r, k] = q
+        free += free_part(modes, k, q)
+    return free, held
+
+
+@wp.func_native("""return (uint64_t)(&ring.data(0));""")
+def ring_address(ring: wp.tile(dtype=wp.float64, shape=(RING_WORDS,), storage="shared")) -> wp.uint64:
+    """The address of a block's shared ring."""
+    ...
+
+
+@wp.func
+def published_slot(base: wp.uint64, k: int, slot: PreparedSlot):
+    """Writes the prepared step k into the ring, then (after a fence) the step it holds."""
+    at = k & (RING - 1)
+    for i in range(8):
+        set_shared_volatile(base, 2 * RING + 8 * at + i, slot[i])
+    fence_block()
+    set_shared_volatile(base, 10 * RING + at, wp.float64(k + 1))
+
+
+@wp.func
+def awaited_slot(base: wp.uint64, s: int) -> PreparedSlot:
+    """The prepared step s from the ring, once a helper has written it (its reads wait on the
+    step's, which its writer wrote after them)."""
+    at = s & (RING - 1)
+    while shared_volatile(base, 10 * RING + at) != wp.float64(s + 1):
+        backoff()
+    slot = PreparedSlot()
+    for i in range(8):
+        slot[i] = shared_volatile(base, 2 * RING + 8 * at + i)
+    return slot
+
+
+@wp.func
+def published_depth(base: wp.uint64, s: int, d: wp.float64):
+    """Writes step s's indentation d (m) into the ring with its step (plus one), in one write."""
+    set_shared_pair(base, s & (RING - 1), d, wp.float64(s + 1))
+
+
+@wp.func
+def awaited_depth(base: wp.uint64, s: int) -> wp.float64:
+    """Step s's indentation (m) from the ring, once the stepping warp has published it."""
+    pair = shared_pair(base, s & (RING - 1))
+    while pair[1] != wp.float64(s + 1):
+        backoff()
+        pair = shared_pair(base, s & (RING - 1))
+    return pair[0]
 
 
 @wp.func
@@ -80,7 +188,7 @@ def row_index(lines: Any, r: int, contact: Contact) -> int:
 
 
 def coupled_dynamics(lines_type, lane_force, row_setup=row_index, forward_euler: bool = False,
-                     modal: bool = False) -> wp.Kernel:
+                     modal: bool = False, prepared=None, helped: bool = False) -> wp.Kernel:
     """The eq 13 kernel of the algorithm whose share of a step's force is ``lane_force``.
 
     ``row_setup(lines: lines_type, r: int, contact: Contact) -> row`` reads, once before the
@@ -91,10 +199,16 @@ def coupled_dynamics(lines_type, lane_force, row_setup=row_index, forward_euler:
     step; the parts of all lanes sum to F. ``lines_type``: what the algorithm reads of the
     lines (a ``wp.struct`` or an array). ``forward_euler``: the thesis's forward Euler step
     instead of the semi-implicit one; ``modal``: the contact point moves with a modal state
-    space (:func:`coupled_track`); both chosen at compile time (``wp.static``). One kernel per
-    set of arguments, made once.
+    space (:func:`coupled_track`); both chosen at compile time (``wp.static``).
+
+    ``prepared``: for an algorithm that can prepare a step's force ahead, the pair ``(prepare,
+    prepared_force)``: ``prepare(lines, row, c, ahead: int, d, d1, d2, contact, lane, lanes) ->
+    PreparedSlot`` from the indentations (m) ``ahead`` steps before the step and the two before
+    that, and ``prepared_force(lines, row, slot, c, d, contact, lane, lanes) -> (F, row)``,
+    the whole F in every lane. ``helped``: the variant that uses them (:func:`with_helpers`).
+    One kernel per set of arguments, made once.
     """
-    key = (lines_type, lane_force, row_setup, forward_euler, modal)
+    key = (lines_type, lane_force, row_setup, forward_euler, modal, prepared, helped)
     made = _KERNELS.get(key)
     if made is None:
         made = _KERNELS[key] = _coupled_kernel(*key)
@@ -105,21 +219,34 @@ def coupled_dynamics(lines_type, lane_force, row_setup=row_index, forward_euler:
 def with_integrator(kernel: wp.Kernel, integrator: str) -> wp.Kernel:
     """The variant of a kernel of :func:`coupled_dynamics` that steps eq 13 by ``integrator``
     (one of :data:`INTEGRATORS`)."""
-    lines_type, lane_force, row_setup, _, modal = _MADE_FROM[kernel]
-    return coupled_dynamics(lines_type, lane_force, row_setup, integrator == INTEGRATORS[1], modal)
+    lines_type, lane_force, row_setup, _, modal, prepared, helped = _MADE_FROM[kernel]
+    return coupled_dynamics(lines_type, lane_force, row_setup, integrator == INTEGRATORS[1], modal, prepared, helped)
 
 
 def coupled_track(kernel: wp.Kernel) -> wp.Kernel:
     """The variant of a kernel of :func:`coupled_dynamics` whose contact point moves: the
     indentation is the wheel mass's minus the output of a modal state space (the rail's and a
     modal wheel's receptances) driven by F - F_N."""
-    lines_type, lane_force, row_setup, forward_euler, _ = _MADE_FROM[kernel]
-    return coupled_dynamics(lines_type, lane_force, row_setup, forward_euler, True)
+    lines_type, lane_force, row_setup, forward_euler, _, prepared, helped = _MADE_FROM[kernel]
+    return coupled_dynamics(lines_type, lane_force, row_setup, forward_euler, True, prepared, helped)
 
 
-def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, modal: bool) -> wp.Kernel:
+def with_helpers(kernel: wp.Kernel) -> wp.Kernel | None:
+    """The variant of a kernel of :func:`coupled_dynamics` whose steps are prepared ahead, one
+    realization a block: on CUDA the block's first warp steps it and the others (helpers)
+    prepare its steps :data:`PREPARED_AHEAD` ahead, through a ring in shared memory; a block of
+    one warp (and the CPU's one lane) prepares them itself. None for an algorithm that cannot."""
+    lines_type, lane_force, row_setup, forward_euler, modal, prepared, _ = _MADE_FROM[kernel]
+    if prepared is None:
+        return None
+    return coupled_dynamics(lines_type, lane_force, row_setup, forward_euler, modal, prepared, True)
 
-    @wp.kernel(module="unique", enable_backward=False)
+
+def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, modal: bool, prepared,
+                    helped: bool) -> wp.Kernel:
+    prepare, prepared_force = prepared if helped else (None, None)
+
+    @wp.kernel(module="unique", enable_backward=False, cuda_max_registers=HELPED_REGISTERS if helped else None)
     def coupled_response(
         lines: lines_type,
         contact: Contact,
@@ -149,34 +276,82 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
         of shuffles sums both in every lane, and every lane advances the same state with the
         same arithmetic. What the steps need of the row is read once before them
         (``row_setup``) and passed from step to step. The output y of the next step is the
-        modes' free part plus ``gain`` times the force: the modes step beside the next step's force, off its chain. Writes
-        ``force = F - force_offset`` (N) and ``accel = d_w''`` (m/s^2); steps without contact
-        are those with F = 0.
+        modes' free part plus ``gain`` times the force: the modes step beside the next step's
+        force, off its chain. In the ``helped`` variant a block holds one realization: its
+        first warp steps it, each step's force prepared ahead (``prepare``) by the block's other
+        warps in turn, or by the first warp itself in a block of one warp, and read from the
+        block's shared ring (``prepared_force``); the stepping warp publishes each indentation
+        there. Writes ``force = F - force_offset`` (N) and ``accel = d_w''`` (m/s^2); steps
+        without contact are those with F = 0.
         """
         block, thread = wp.tid()
         lanes = wp.min(wp.block_dim(), COUPLED_LANES)
-        r = block * (wp.block_dim() // lanes) + thread // lanes
+        warps = wp.block_dim() // lanes
+        r = block * warps + thread // lanes
+        if wp.static(helped):
+            r = block
         if r >= rows:
             return
         lane = thread % lanes
         row = wp.static(row_setup)(lines, r, contact)
+        base = wp.uint64(0)
+        if wp.static(helped):
+            ring = wp.tile_zeros(shape=RING_WORDS, dtype=wp.float64, storage="shared")
+            base = ring_address(ring)
+            if thread == 0:
+                published_depth(base, 0, d_start)
+            sync_block()
+            helper = thread // lanes
+            if helper > 0:  # prepare steps helper - 1, helper - 1 + (warps - 1), ... past the first
+                k = PREPARED_AHEAD + 1 + helper
+                while k < steps:
+                    d = awaited_depth(base, k - PREPARED_AHEAD)
+                    slot = wp.static(prepare)(lines, row, first + k, PREPARED_AHEAD, d,
+                                              awaited_depth(base, k - PREPARED_AHEAD - 1),
+                                              awaited_depth(base, k - PREPARED_AHEAD - 2), contact, lane, lanes)
+                    if lane == 0:
+                        published_slot(base, k, slot)
+                    k += warps - 1
+                return
         forces = row_address(force, r)
         accels = row_address(accel, r)
         d_w = d_start
         v = wp.float64(0.0)
         y = wp.float64(0.0)  # the contact point's displacement (m), modal variant
         free = wp.float64(0.0)  # this lane's part of the next y without force
+        held = held_coefficients(modes, lane, lanes)  # this lane's first modes
         for s in range(steps):
             F = wp.float64(0.0)
+            d = d_w
             if wp.static(modal):
-                part, row = wp.static(lane_force)(lines, row, first + s, d_w - y, contact, lane, lanes)
+                d = d_w - y
+            if wp.static(helped):
+                k = s + PREPARED_AHEAD
+                if warps == 1 and k >= PREPARED_AHEAD + 2 and k < steps:  # no helpers: prepare step k here
+                    slot = wp.static(prepare)(lines, row, first + k, PREPARED_AHEAD, d, awaited_depth(base, s - 1),
+                                              awaited_depth(base, s - 2), contact, lane, lanes)
+                    if lane == 0:
+                        published_slot(base, k, slot)
+                slot = PreparedSlot()
+                if s >= PREPARED_AHEAD + 2:
+                    slot = awaited_slot(base, s)
+                if wp.static(modal):
+                    free_sum = warp_sum_float(free)  # not waiting on this step's force
+                    F, row = wp.static(prepared_force)(lines, row, slot, first + s, d, contact, lane, lanes)
+                    u = F - F_N
+                    y = free_sum + modes.gain * u
+                    free, held = modal_step(modes, state, r, u, lane, lanes, held)
+                else:
+                    F, row = wp.static(prepared_force)(lines, row, slot, first + s, d, contact, lane, lanes)
+            elif wp.static(modal):
+                part, row = wp.static(lane_force)(lines, row, first + s, d, contact, lane, lanes)
                 sums = warp_sum_float_pair(wp.vec2d(part, free))
                 F = sums[0]
                 u = F - F_N
                 y = sums[1] + modes.gain * u
-                free = modal_step(modes, state, r, u, lane, lanes)
+                free, held = modal_step(modes, state, r, u, lane, lanes, held)
             else:
-                part, row = wp.static(lane_force)(lines, row, first + s, d_w, contact, lane, lanes)
+                part, row = wp.static(lane_force)(lines, row, first + s, d, contact, lane, lanes)
                 F = warp_sum_float(part)
             a = (F_N - F) * inv_mass
             if lane == 0:
@@ -188,5 +363,12 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
             else:
                 v += dt * a
                 d_w += dt * v
+            if wp.static(helped):  # the next indentation, for the helpers
+                if lane == 0:
+                    if wp.static(modal):
+                        published_depth(base, s + 1, d_w - y)
+                    else:
+                        published_depth(base, s + 1, d_w)
+                sync_warp()
 
     return coupled_response

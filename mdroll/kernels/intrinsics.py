@@ -236,3 +236,169 @@ def wait_nanoseconds(nanoseconds: wp.int64):
 def hold_stream(nanoseconds: wp.int64):
     """Launched with one lane: the stream is busy for ``nanoseconds`` (ns)."""
     wait_nanoseconds(nanoseconds)
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+return (int)__ballot_sync(0xffffffffu, predicate);
+#else
+return predicate ? 1 : 0;
+#endif
+""")
+def ballot(predicate: bool) -> int:
+    """The bits of the lanes of the warp whose ``predicate`` holds (lane i: bit i; CUDA; on the
+    CPU, where a block is one lane, bit 0; every lane of the warp must call)."""
+    ...
+
+
+@wp.func_native("""
+unsigned bits = (unsigned)mask;
+if (bits == 0u) return -1;
+int i = 0;
+#if defined(__CUDA_ARCH__)
+i = __ffs(bits) - 1;
+#else
+while (!((bits >> i) & 1u)) ++i;
+#endif
+return i;
+""")
+def lowest_lane(mask: int) -> int:
+    """The lowest lane whose bit is set in a :func:`ballot`'s ``mask``; -1 for none."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+return __shfl_sync(0xffffffffu, value, source);
+#else
+return value;
+#endif
+""")
+def broadcast_float(value: wp.float64, source: int) -> wp.float64:
+    """The float64 of lane ``source`` (taken modulo 32) of the warp, in every lane (CUDA; the
+    value itself on the CPU; every lane of the warp must call)."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+return __shfl_sync(0xffffffffu, value, source);
+#else
+return value;
+#endif
+""")
+def broadcast_int(value: int, source: int) -> int:
+    """The int of lane ``source`` (taken modulo 32) of the warp, in every lane (as
+    :func:`broadcast_float`)."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ >= 800
+return __reduce_add_sync(0xffffffffu, value);
+#elif defined(__CUDA_ARCH__)
+#pragma unroll
+for (int mask = 16; mask > 0; mask >>= 1) {
+    value += __shfl_xor_sync(0xffffffffu, value, mask);
+}
+return value;
+#else
+return value;
+#endif
+""")
+def warp_sum_int(value: int) -> int:
+    """The sum of an int over the 32 lanes of the warp, in every lane (one instruction from
+    compute capability 8.0, a butterfly of shuffles before; the value itself on the CPU; every
+    lane of the warp must call)."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+float root;
+asm("sqrt.approx.f32 %0, %1;" : "=f"(root) : "f"(value));
+return root;
+#else
+return sqrtf(value);
+#endif
+""")
+def rough_sqrt(value: wp.float32) -> wp.float32:
+    """The square root of a float32 ``value >= 0`` to a relative error below 2^-22 (CUDA's
+    approximate square root, one instruction without a slow path; ``sqrtf`` on the CPU): for
+    guesses that an exact test then settles."""
+    ...
+
+
+@wp.func_native("""return ((volatile double*)base)[i];""")
+def shared_volatile(base: wp.uint64, i: int) -> wp.float64:
+    """The float64 at ``base[i]`` in shared memory, read anew (another warp may write it)."""
+    ...
+
+
+@wp.func_native("""((volatile double*)base)[i] = value;""")
+def set_shared_volatile(base: wp.uint64, i: int, value: wp.float64):
+    """``base[i] = value`` for a float64 in shared memory, written at once (another warp reads it)."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+__threadfence_block();
+#endif
+""")
+def fence_block():
+    """Orders this lane's shared-memory writes (reads) before its later ones for the block's
+    other warps (CUDA; nothing on the CPU, where a block is one lane)."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+__nanosleep(32);
+#endif
+""")
+def backoff():
+    """A short pause in a lane's wait for another warp, leaving the issue slots to the warps
+    that work (CUDA; nothing on the CPU)."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+return __ldg(((const double*)base) + i);
+#else
+return ((const double*)base)[i];
+#endif
+""")
+def load_line(base: wp.uint64, i: int) -> wp.float64:
+    """``base[i]`` for a float64 in global memory that no lane writes while the kernel runs (a
+    line's heights or prefix sums): a global load through the read-only path."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+asm volatile("st.volatile.v2.f64 [%0], {%1, %2};" :: "l"(((double*)base) + 2 * i), "d"(first), "d"(second) : "memory");
+#else
+((volatile double*)base)[2 * i] = first;
+((volatile double*)base)[2 * i + 1] = second;
+#endif
+""")
+def set_shared_pair(base: wp.uint64, i: int, first: wp.float64, second: wp.float64):
+    """The pair of float64 ``base[2 i], base[2 i + 1]`` in shared memory, in one 16-byte write
+    (another warp reads it whole, :func:`shared_pair`)."""
+    ...
+
+
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+double first, second;
+asm volatile("ld.volatile.v2.f64 {%0, %1}, [%2];" : "=d"(first), "=d"(second) : "l"(((double*)base) + 2 * i) : "memory");
+return wp::vec2d(first, second);
+#else
+return wp::vec2d(((volatile double*)base)[2 * i], ((volatile double*)base)[2 * i + 1]);
+#endif
+""")
+def shared_pair(base: wp.uint64, i: int) -> wp.vec2d:
+    """The pair of float64 of :func:`set_shared_pair`, read anew in one 16-byte read."""
+    ...

@@ -238,3 +238,10 @@ def periodic_extend(h: wp.array2d(dtype=wp.float64), n: int, pad: int, extended:
     if j < 0:
         j += n
     extended[r, i] = h[r, j]
+
+
+@wp.kernel
+def add_to_rows(h: wp.array2d(dtype=wp.float64), line: wp.array(dtype=wp.float64)):
+    """``h[r, i] += line[i]``: one deterministic line added to every row."""
+    r, i = wp.tid()
+    h[r, i] = h[r, i] + line[i]

@@ -14,6 +14,7 @@ Units are SI; every stiffness and mass of the support is that of one support (on
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 from mdroll.checks import check_nonnegative, check_number, check_positive
@@ -89,6 +90,11 @@ class Track(Presettable):
         Ballast stiffness under one support (N/m) and loss factor. Default 100 MN/m, 1.0.
     sleeper_spacing : float
         Distance between supports (m). Default 0.6 m.
+    parametric : bool
+        A coupled run adds the moving load's quasi-static parametric excitation, the equivalent
+        roughness of :func:`mdroll.track.parametric.equivalent_roughness` at the static load
+        (x = 0 of the line above a support), to every realization's line. Only with
+        ``support = "discrete"``. Default False.
     """
 
     support: str = "continuous"
@@ -103,8 +109,9 @@ class Track(Presettable):
     ballast_stiffness: float = 100e6
     ballast_loss: float = 1.0
     sleeper_spacing: float = 0.6
+    parametric: bool = False
 
-    PREFIX, PRESETS, TEXT_FIELDS = "track", PRESETS, ("support",)
+    PREFIX, PRESETS, TEXT_FIELDS, FLAG_FIELDS = "track", PRESETS, ("support",), ("parametric",)
 
     def __post_init__(self) -> None:
         if self.support not in SUPPORTS:
@@ -115,3 +122,13 @@ class Track(Presettable):
                      lambda v: v > 0)
         for name in ("rail_rotary_inertia", "rail_loss", "pad_loss", "sleeper_mass", "ballast_loss"):
             check_nonnegative(f"track.{name}", getattr(self, name))
+        if not isinstance(self.parametric, bool):
+            raise ParameterError(f"track.parametric = {self.parametric!r} is not allowed: it must be true or false")
+        if self.parametric and self.support != "discrete":
+            raise ParameterError(f"track.parametric = true is not allowed with track.support = {self.support!r}: the "
+                                 "moving load's parametric excitation needs track.support = 'discrete'")
+
+    def structure(self) -> "Track":
+        """The track without the moving load's excitation (``parametric = False``): the structure
+        whose receptances the coupled dynamics steps."""
+        return dataclasses.replace(self, parametric=False) if self.parametric else self

@@ -37,7 +37,7 @@ ZONE_POINTS = 2048
 CHUNK = 128
 
 
-def _free_waves(omega, track):
+def free_waves(omega, track):
     """(c_j, k_j, e_j) of the free rail at omega (each of shape omega.shape + (2,))."""
     k, A = wavenumbers(omega, track, 0.0)
     return 0.5j * A / k, k, np.exp(1j * k * track.sleeper_spacing)
@@ -46,10 +46,10 @@ def _free_waves(omega, track):
 def lattice_sum(x, z, waves, spacing):
     """``S(x, z) = sum_n z^n G(x - n d)`` (m/N) of the free rail (module docstring).
 
-    ``x`` (m, scalar), ``z`` (|z| = 1, shape (..., M)), ``waves`` from :func:`_free_waves` with
-    shape (..., 2); returns shape (..., M)."""
-    m = np.floor(x / spacing)
-    y = x - m * spacing
+    ``x`` (m, a scalar or shape (M,)), ``z`` (|z| = 1, shape (..., M)), ``waves`` from
+    :func:`free_waves` with shape (..., 2); returns shape (..., M)."""
+    m = np.floor(np.asarray(x, dtype=np.float64) / spacing)
+    y = (x - m * spacing)[..., None]
     c, k, e = (w[..., None, :] for w in waves)
     zz = z[..., None]
     terms = c * (np.exp(1j * k * y) / (1.0 - e / zz) + np.exp(-1j * k * y) * zz * e / (1.0 - zz * e))
@@ -68,7 +68,7 @@ def discrete_receptance(f, track, x0=0.0, x=None, zone_points=ZONE_POINTS):
     out = np.empty(omega.shape, dtype=complex)
     for start in range(0, len(omega), CHUNK):
         part = omega[start:start + CHUNK]
-        waves = _free_waves(part, track)
+        waves = free_waves(part, track)
         zz = np.broadcast_to(z, part.shape + z.shape)
         K = support_stiffness(part, track)[:, None]
         w = lattice_sum(x - x0, zz, waves, d) - K * lattice_sum(-x0, zz, waves, d) * lattice_sum(x, zz, waves, d) / (
@@ -79,9 +79,9 @@ def discrete_receptance(f, track, x0=0.0, x=None, zone_points=ZONE_POINTS):
 
 def _multipliers(omega, track):
     """The four Floquet multipliers at ``omega`` (rad/s, 1-D), sorted by |z|, with the free waves
-    (:func:`_free_waves`) and the support stiffness K_s: the roots of the quartic of
+    (:func:`free_waves`) and the support stiffness K_s: the roots of the quartic of
     :func:`floquet_multipliers` as the eigenvalues of its companion matrices, all at once."""
-    waves = _free_waves(omega, track)
+    waves = free_waves(omega, track)
     c, _, e = waves
     K = support_stiffness(omega, track)
     q1, q2 = (np.stack([-e[:, j], 1 + e[:, j] ** 2, -e[:, j]], axis=-1) for j in (0, 1))

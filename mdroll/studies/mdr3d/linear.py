@@ -14,12 +14,16 @@ with the transfer T of the model:
 * ``"3d"``: ``sinc^2(sqrt((q_x a_x)^2 + (q_y a_y)^2))``, the 3-D contact;
 * ``"corrected"``: ``sinc^2(q_x a_x) sinc^2(q_y a_y)``, the corrected MDR (uniform line weight of
   half-length a_x on the surface averaged uniformly across ``|y| <= a_y``);
-* ``"line"``: ``sinc^2(q_x a)``, the MDR on a measured line (eq 39 with C_1D = C_p), a its radius.
+* ``"line"``: ``sinc^2(q_x a)``, the MDR on a measured line (eq 39 with C_1D = C_p), a its radius;
+* ``"dprs"``: ``(2 J1(rho) / rho)^2``, ``rho = sqrt((q_x a_x)^2 + (q_y a_y)^2)``, the distributed
+  point-reacting springs on Hertz's ellipse (:func:`mdroll.bem.dprs.transfer`: the roughness
+  averaged uniformly over the patch), its k the bed's own stiffness.
 
 The contact filter of a band b is the force's band power over ``k^2`` times the band power of the
 profile roughness ``C_p(q_x) = integral dq_y C_2D`` (what a trolley measures):
 ``A(b) = 10 lg( integral_b C_F dq_x / (k^2 integral_b C_p dq_x) )`` (dB). For a corrugation
-(C_2D concentrated on q_y = 0) every model reduces to its own ``sinc^2(q_x a_x)`` band average.
+(C_2D concentrated on q_y = 0) every model reduces to its own transfer at q_y = 0 (``sinc^2(q_x a_x)``
+for the first three), band-averaged.
 
 Spectra: the self-affine ``C_2D ~ q_e^(-2H-2)``, ``q_e = sqrt(q_x^2 + (q_y / gamma)^2)``, on
 ``q_min <= q_e <= q_max`` (:func:`mdroll.bem.surfaces.areal_psd`); the level cancels in A.
@@ -32,11 +36,12 @@ import math
 import numpy as np
 from scipy import integrate
 
+from ...bem.dprs import transfer as dprs_transfer
 from ...bem.surfaces import areal_psd
 from ...roughness.bands import wavelength_band_edges_q
 
 #: Transfers of :func:`transfer` (module docstring).
-MODELS = ("3d", "corrected", "line")
+MODELS = ("3d", "corrected", "line", "dprs")
 #: Quadrature points per band along the track and across it.
 POINTS_X, POINTS_Y = 32, 2001
 #: The integral across the track stops at q_y = LATERAL_TOP / a_y (or 8 q_x): the spectrum and the
@@ -59,6 +64,8 @@ def transfer(model: str, qx, qy, semi_x: float, semi_y: float, radius_line: floa
         return _sinc2(qx * semi_x) * _sinc2(qy * semi_y)
     if model == "line":
         return _sinc2(qx * (semi_x if radius_line is None else radius_line)) * np.ones_like(qy)
+    if model == "dprs":
+        return dprs_transfer(qx, qy, semi_x, semi_y)
     raise ValueError(f"model {model!r} is not one of {MODELS}")
 
 

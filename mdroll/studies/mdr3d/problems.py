@@ -26,6 +26,9 @@ The MDR variants (each a sphere on a row of springs, eq 10-12, at its own fixed 
   corrugation sees the MDR's uniform line weight of half-length a_x), and along the track to a
   constant on ``|y| < a_y`` (so roughness constant along the track sees the uniform lateral
   mean). The corrected MDR is exact on both axes of the wavenumber plane (linear order).
+
+Beside them the distributed point-reacting spring bed (:mod:`mdroll.bem.dprs`) of Hertz's
+ellipse, at the 3-D approach and the load, rolls on the 3-D surfaces themselves (:func:`dprs_forces`).
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ import numpy as np
 
 from ... import physics, rough_lines
 from ...bem import extruded, hertz_elliptical, roll, self_affine
+from ...bem import dprs
 from ...devices import array_module, is_cuda
 from ...ensemble.psd import array_rows, to_host
 from ...forces.force import contact_force
@@ -238,6 +242,18 @@ def bem_forces(shape: Geometry, mesh: Grid, heights, device: str, tol: float):
     run = roll(heights, mesh.dx, shape.radius_x, radius_y=shape.radius_y, E_star=shape.E_star, steps=mesh.positions,
                approach=shape.approach, window=mesh.n, device=device, tol=tol)
     return run.force, run.iterations, run.converged
+
+
+def bed(shape: Geometry) -> dprs.Bed:
+    """The DPRS bed of an indenter (:mod:`mdroll.bem.dprs`): Hertz's ellipse, the 3-D approach
+    and the load, so that the bed's smooth static contact is the 3-D one."""
+    return dprs.Bed(float(shape.semi_x), float(shape.semi_y), float(shape.approach), float(shape.load))
+
+
+def dprs_forces(shape: Geometry, mesh: Grid, heights, device: str) -> np.ndarray:
+    """The DPRS force (B, positions) (N) on the 3-D reference's surfaces and positions, at the 3-D
+    approach (:func:`mdroll.bem.dprs.roll`)."""
+    return dprs.roll(heights, mesh.dx, bed(shape), steps=mesh.positions, window=mesh.n, device=device).force
 
 
 def centre_profiles(mesh: Grid, heights) -> np.ndarray:

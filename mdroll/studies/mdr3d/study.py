@@ -1,12 +1,14 @@
 """``mdroll study mdr-vs-3d``: is the MDR right for a wheel rolling on rough rails? Its force
 spectrum against the 3-D boundary-element reference (:mod:`mdroll.bem`) on the same problems,
-band by band, and the contact filters of both beside CNOSSOS-EU's A3 (docs/mdr-vs-3d.md).
+band by band, and the contact filters of both and of the distributed point-reacting spring (DPRS)
+model of Remington & Webb (:mod:`mdroll.bem.dprs`) beside CNOSSOS-EU's A3 (docs/mdr-vs-3d.md).
 
 Per indenter (:data:`~.problems.INDENTERS`) every case of the rung (surface x H x h0/d0 x
 q_min a) rolls in one batch of the 3-D solver (realizations ``0 .. R-1`` of each case at the
-study's seed), and each MDR variant (:data:`~.problems.VARIANTS`) rolls over the same positions.
-Claims, one per (surface, indenter, variant, band) at the smallest h0/d0 (the linear regime),
-averaged over H and q_min: the MDR's band power equals the 3-D one within 1 dB. Every case's
+study's seed), and each MDR variant (:data:`~.problems.VARIANTS`) and the DPRS bed roll over the
+same positions. Claims, one per (surface, indenter, model, band) at the smallest h0/d0 (the linear
+regime), averaged over H and q_min: the model's band power (the DPRS's over its own stiffness)
+equals the 3-D one within 1 dB. Every case's
 ratios with their 95 % intervals, the measured contact filters and the closed forms of
 :mod:`.linear` are in the measurements.
 """
@@ -22,7 +24,7 @@ import numpy as np
 from ... import physics
 from ...devices import array_module
 from ...roughness import tables
-from ...roughness.bands import band_numbers
+from ...roughness.bands import band_centres, band_numbers
 from ...experiments import markdown_table
 from ..core import Claim, StudyOutcome
 from . import compare, linear, problems
@@ -51,8 +53,8 @@ def a3_case(load: float, wheel_radius: float):
     return None
 
 
-def _compare_case(shape, mesh, case, bem, profile, mdr_runs, device) -> dict:
-    """Band ratios (every variant) and measured filters of one case."""
+def _compare_case(shape, mesh, case, bem, profile, mdr_runs, dprs_force, device) -> dict:
+    """Band ratios (every variant, and the DPRS bed's) and measured filters of one case."""
     q, bem_psd = compare.psds(bem, mesh.dx, device)
     q_min = case.qmin_a / shape.semi_x
     q_top = math.pi / (CELLS_PER_WAVE / 2.0 * mesh.dx)
@@ -73,6 +75,14 @@ def _compare_case(shape, mesh, case, bem, profile, mdr_runs, device) -> dict:
         out["variants"][variant]["periods"] = compare.period_ratios(psd, bem_psd, q, q_min, q_top, shape.semi_x, paired)
         out["variants"][variant]["force_rms_N"] = float(force.std(axis=1).mean())
         out["filter"][variant] = compare.measured_filter(q, psd, rough_psd, stiffness, bands)
+    stiffness = problems.bed(shape).stiffness
+    _, psd = compare.psds(dprs_force, mesh.dx, device)
+    out["filter"]["dprs"] = compare.measured_filter(q, psd, rough_psd, stiffness, bands)
+    psd = psd * (shape.stiffness / stiffness) ** 2  # each force over its own stiffness: the filters' ratio
+    masks = compare.masks(q, q_min, q_top, shape.semi_x, shape.semi_x)  # dips: the 3-D's own zeros
+    out["dprs"] = {name: compare.band_ratio(psd, bem_psd, masks[name], True) for name in compare.BANDS}
+    out["dprs"]["periods"] = compare.period_ratios(psd, bem_psd, q, q_min, q_top, shape.semi_x, True)
+    out["dprs"]["force_rms_N"] = float(dprs_force.std(axis=1).mean())
     return out
 
 
@@ -84,9 +94,12 @@ def _run_indenter(name, rung, seed, device, progress) -> dict:
     indices = range(rung["realizations"])
     start = time.perf_counter()
     heights = [problems.surfaces(shape, mesh, case, seed, indices, device) for case in todo]
-    bem, iterations, converged = problems.bem_forces(shape, mesh, array_module(heights[0]).concatenate(heights),
-                                                     device, rung["tol"])
+    batch = array_module(heights[0]).concatenate(heights)
+    bem, iterations, converged = problems.bem_forces(shape, mesh, batch, device, rung["tol"])
     bem_seconds = time.perf_counter() - start
+    dprs_force = problems.dprs_forces(shape, mesh, batch, device)
+    dprs_seconds = time.perf_counter() - start - bem_seconds
+    del batch
     results = []
     for i, (case, surface) in enumerate(zip(todo, heights)):
         runs = {v: problems.mdr_forces(shape, mesh, case, problems.variant_lines(shape, mesh, case, surface, seed,
@@ -94,12 +107,13 @@ def _run_indenter(name, rung, seed, device, progress) -> dict:
                 for v in problems.VARIANTS}
         block = slice(i * len(indices), (i + 1) * len(indices))
         results.append(_compare_case(shape, mesh, case, bem[block], problems.centre_profiles(mesh, surface), runs,
-                                     device))
+                                     dprs_force[block], device))
         if progress:
             print(f"mdr-vs-3d: {case.label()} done", flush=True)
     return {"geometry": shape.as_dict(), "grid": mesh.as_dict(), "cases": results, "bem_seconds": bem_seconds,
             "bem_iterations_mean": float(np.mean(iterations)), "bem_converged": bool(np.all(converged)),
-            "seconds": time.perf_counter() - start}
+            "seconds": time.perf_counter() - start, "dprs_bed": problems.bed(shape).as_dict(),
+            "dprs_seconds": dprs_seconds}
 
 
 def closed_forms(runs: dict, rung: dict) -> dict:
@@ -130,8 +144,8 @@ def closed_forms(runs: dict, rung: dict) -> dict:
 
 def cnossos_cases(crown_radius: float, H: float) -> list:
     """Per A3 case (load, wheel diameter): A3, the MDR's eq 39 (sphere of the wheel radius), and
-    the linear 3-D filter of the wheel-by-crown ellipse on a corrugation and on isotropic
-    roughness of Hurst exponent H, each in A3's bands (dB)."""
+    the linear 3-D and DPRS filters of the wheel-by-crown ellipse on a corrugation and on
+    isotropic roughness of Hurst exponent H, each in A3's bands (dB)."""
     wavelengths, a3 = tables.cnossos_a3()
     bands = band_numbers(wavelengths)
     rows = []
@@ -143,7 +157,10 @@ def cnossos_cases(crown_radius: float, H: float) -> list:
                                                      radius_line=mdr_radius).tolist(),
                      "3d_corrugation_dB": linear.contact_filter("3d", bands, shape.semi_x, shape.semi_y, H,
                                                                 corrugation=True).tolist(),
-                     "3d_isotropic_dB": linear.contact_filter("3d", bands, shape.semi_x, shape.semi_y, H).tolist()})
+                     "3d_isotropic_dB": linear.contact_filter("3d", bands, shape.semi_x, shape.semi_y, H).tolist(),
+                     "dprs_corrugation_dB": linear.contact_filter("dprs", bands, shape.semi_x, shape.semi_y, H,
+                                                                  corrugation=True).tolist(),
+                     "dprs_isotropic_dB": linear.contact_filter("dprs", bands, shape.semi_x, shape.semi_y, H).tolist()})
     return {"wavelength_mm": wavelengths.tolist(), "cases": rows}
 
 
@@ -157,16 +174,34 @@ KNOWN = {
            "edge term) and linear on (b), (c) through lateral waves that a line misses or overstates",
     "patch": "today's MDR sphere carries the load but has neither the Hertz ellipse's length nor its stiffness",
     "filter": "few bins a band and one centre line as the roughness reference: the measured filter scatters",
+    "dprs": "the springs average the roughness uniformly over the patch, 2 J1(rho)/rho, where the elastic contact "
+            "weights it by the flat-punch pressure, singular at the edge, sinc(rho): the bed's filter lies above "
+            "the 3-D's at the knee (first zero at rho = 3.83, not pi) and falls as rho^-3, not rho^-2, beyond",
+    "dprs low": "below q_min on a corrugation the force is second order in the roughness, set at the contact's "
+                "edge, where independent springs are not the elastic contact's coupled edge",
+    "dprs lateral": "below q_min on (b), (c) the force is linear through lateral waves, which the springs average "
+                    "uniformly across the patch (2 J1 of q_y a_y) and the elastic contact with the flat-punch weight",
 }
+#: The models compared with the 3-D reference: the MDR variants and the DPRS bed.
+MODELS = problems.VARIANTS + ("dprs",)
+#: Ranges of q a_x of the measured filters' bands (:func:`filter_table`): long waves, the knee, short waves.
+FILTER_RANGES = (("q a_x < 1", 0.0, 1.0), ("1 <= q a_x < pi", 1.0, math.pi), ("q a_x >= pi", math.pi, math.inf))
 
 
 def known(surface: str, indenter: str, variant: str, band: str) -> str:
     """The explanation of :data:`KNOWN` that applies to a claim, or ""."""
+    if variant == "dprs":
+        return KNOWN["dprs"] if band != "low" else KNOWN["dprs low"] if surface == "a" else KNOWN["dprs lateral"]
     if band == "low":
         return KNOWN["low"]
     if surface != "a":
         return KNOWN["lateral mean"] if variant == "corrected" else KNOWN["across"]
     return KNOWN["patch"] if indenter == "ellipse" and variant != "corrected" else ""
+
+
+def ratios_of(case: dict, model: str) -> dict:
+    """The band ratios over the 3-D force of ``model`` (an MDR variant, or "dprs") in a case."""
+    return case["dprs"] if model == "dprs" else case["variants"][model]
 
 
 def _pooled(entries) -> tuple[np.ndarray, float]:
@@ -177,38 +212,42 @@ def _pooled(entries) -> tuple[np.ndarray, float]:
 
 
 def claims_of(runs: dict, rung: dict) -> list:
-    """One claim per (surface, indenter, variant, band) at the smallest h0/d0: the mean dB over
-    the cases (H, q_min) against 0 within :data:`ALLOWANCE_DB`; and per (surface, indenter) the
-    linear closed form of the 3-D filter (:mod:`.linear`) against the measured one, in the bands
+    """One claim per (surface, indenter, model, band) at the smallest h0/d0: the mean dB over
+    the cases (H, q_min) against 0 within :data:`ALLOWANCE_DB` (the DPRS force over its own
+    stiffness against the 3-D force over its own); and per (surface, indenter) the linear closed
+    forms of the 3-D and the DPRS filters (:mod:`.linear`) against the measured ones, in the bands
     outside the dips (closed form above -15 dB) of the smallest h0/d0 and q_min."""
     smallest = min(rung["ratios"])
     claims = []
     for name, run in runs.items():
         linear_cases = [c for c in run["cases"] if c["case"]["h0_d0"] == smallest]
-        for surface, variant, band in itertools.product(rung["surfaces"], problems.VARIANTS, compare.BANDS):
-            found = [c["variants"][variant][band] for c in linear_cases
-                     if c["case"]["surface"] == surface and c["variants"][variant][band]["dB"] is not None]
+        for surface, model, band in itertools.product(rung["surfaces"], MODELS, compare.BANDS):
+            found = [ratios_of(c, model)[band] for c in linear_cases
+                     if c["case"]["surface"] == surface and ratios_of(c, model)[band]["dB"] is not None]
             if not found:
                 continue
             values, stderr = _pooled(found)
+            what = "DPRS" if model == "dprs" else f"MDR {model}"
             claims.append(Claim(
-                name=f"({surface}) {name} {variant} {band}",
-                thesis=f"MDR {variant} {band}-band force PSD equals the 3-D one (sec 7.1)",
+                name=f"({surface}) {name} {model} {band}",
+                thesis=f"{what} {band}-band force PSD equals the 3-D one (sec 7.1)",
                 measured=float(values.mean()), stderr=stderr, expected=0.0, unit="dB", source="3-D reference",
-                allowance=ALLOWANCE_DB, known=known(surface, name, variant, band),
+                allowance=ALLOWANCE_DB, known=known(surface, name, model, band),
                 note=f"h0/d0 {smallest:g}; {values.size} cases, {values.min():+.2f} to {values.max():+.2f} dB"))
-        for surface in rung["surfaces"]:
+        for surface, model in itertools.product(rung["surfaces"], ("3d", "dprs")):
             chosen = [c for c in linear_cases if c["case"]["surface"] == surface]
             if not chosen:
                 continue
             case = min(chosen, key=lambda c: c["case"]["qmin_a"])
-            closed = dict(zip(run["closed"]["bands"], run["closed"][surface]["3d"]))
-            diff = np.array([m - closed[b] for b, m in zip(case["filter"]["bands"], case["filter"]["3d"])
+            closed = dict(zip(run["closed"]["bands"], run["closed"][surface][model]))
+            diff = np.array([m - closed[b] for b, m in zip(case["filter"]["bands"], case["filter"][model])
                              if closed.get(b) is not None and closed[b] > -15.0 and math.isfinite(m)])
             if diff.size < 2:
                 continue
+            label = "3-D" if model == "3d" else "DPRS"
             claims.append(Claim(
-                name=f"({surface}) {name} linear 3-D filter", thesis="the linear 2-D contact filter is the 3-D one",
+                name=f"({surface}) {name} linear {label} filter",
+                thesis=f"the linear 2-D contact filter is the {label} one",
                 measured=float(diff.mean()), stderr=float(diff.std(ddof=1) / math.sqrt(diff.size)), expected=0.0,
                 unit="dB", source="closed form", allowance=ALLOWANCE_DB,
                 known=KNOWN["filter"] if surface != "a" else "",
@@ -217,25 +256,52 @@ def claims_of(runs: dict, rung: dict) -> list:
 
 
 def verdict_table(runs: dict, rung: dict) -> list:
-    """Markdown lines: per (surface, indenter, variant, h0/d0) the mean MDR-to-3-D ratio (dB) of
+    """Markdown lines: per (surface, indenter, model, h0/d0) the mean model-to-3-D ratio (dB) of
     each band over the cases (H, q_min), with its range, and whether every case lies within
     :data:`ALLOWANCE_DB` (its 95 % interval included)."""
     rows = []
     for name, run in runs.items():
-        for surface, variant, ratio in itertools.product(rung["surfaces"], problems.VARIANTS, rung["ratios"]):
+        for surface, model, ratio in itertools.product(rung["surfaces"], MODELS, rung["ratios"]):
             cells, trusted = [], True
             for band in compare.BANDS:
-                found = [c["variants"][variant][band] for c in run["cases"] if c["case"]["surface"] == surface
-                         and c["case"]["h0_d0"] == ratio and c["variants"][variant][band]["dB"] is not None]
+                found = [ratios_of(c, model)[band] for c in run["cases"] if c["case"]["surface"] == surface
+                         and c["case"]["h0_d0"] == ratio and ratios_of(c, model)[band]["dB"] is not None]
                 if not found:
                     cells.append("-")
                     continue
                 values = [f["dB"] for f in found]
                 trusted &= all(-ALLOWANCE_DB <= f["ci95_dB"][0] and f["ci95_dB"][1] <= ALLOWANCE_DB for f in found)
                 cells.append(f"{np.mean(values):+.1f} ({min(values):+.1f} to {max(values):+.1f})")
-            rows.append((f"({surface})", name, variant, f"{ratio:g}", *cells, "yes" if trusted else "no"))
+            rows.append((f"({surface})", name, model, f"{ratio:g}", *cells, "yes" if trusted else "no"))
     return markdown_table(("surface", "indenter", "MDR", "h0/d0", "low (dB)", "high (dB)", "dips (dB)",
                            f"all within {ALLOWANCE_DB:g} dB"), rows)
+
+
+def filter_table(runs: dict, rung: dict) -> list:
+    """Markdown lines: per (surface, indenter, model) at the smallest h0/d0 the measured contact
+    filter minus the measured 3-D one in the 1/3-octave bands of each range of
+    :data:`FILTER_RANGES` (band centre's q a_x), over every case (H, q_min) and band: the mean
+    (dB), its range, and the bands within :data:`ALLOWANCE_DB`."""
+    smallest = min(rung["ratios"])
+    rows = []
+    for name, run in runs.items():
+        semi_x = run["geometry"]["semi_x"]
+        for surface, model in itertools.product(rung["surfaces"], MODELS):
+            chosen = [c["filter"] for c in run["cases"] if c["case"]["surface"] == surface
+                      and c["case"]["h0_d0"] == smallest]
+            if not chosen:
+                continue
+            qa = [2e3 * math.pi * semi_x / band_centres(f["bands"]) for f in chosen]
+            diff = [np.array(f[model]) - np.array(f["3d"]) for f in chosen]
+            cells = []
+            for _, low, high in FILTER_RANGES:
+                found = np.concatenate([d[(q >= low) & (q < high)] for q, d in zip(qa, diff)])
+                found = found[np.isfinite(found)]
+                cells.append("-" if not found.size else f"{found.mean():+.1f} ({found.min():+.1f} to "
+                             f"{found.max():+.1f}; {int(np.sum(np.abs(found) <= ALLOWANCE_DB))}/{found.size})")
+            rows.append((f"({surface})", name, model, *cells))
+    return markdown_table(("surface", "indenter", "model", *(f"{label} (dB)" for label, _, _ in FILTER_RANGES)),
+                          rows)
 
 
 def mdr_vs_3d(runner, *, surfaces, indenters, hursts, ratios, qmin_as, realizations, cells, positions,
@@ -256,9 +322,10 @@ def mdr_vs_3d(runner, *, surfaces, indenters, hursts, ratios, qmin_as, realizati
     for name, run in runs.items():
         run["closed"] = forms[name]
     claims = claims_of(runs, rung)
-    measurements = {"runs": runs, "closed_forms": forms, "rung": rung, "verdict_table": verdict_table(runs, rung)}
+    measurements = {"runs": runs, "closed_forms": forms, "rung": rung, "verdict_table": verdict_table(runs, rung),
+                    "filter_table": filter_table(runs, rung)}
     agreeing = sum(abs(c.measured) <= ALLOWANCE_DB for c in claims)
-    summary = (f"{agreeing} of {len(claims)} (surface, indenter, variant, band) means lie within "
+    summary = (f"{agreeing} of {len(claims)} (surface, indenter, model, band) means lie within "
                f"{ALLOWANCE_DB:g} dB of the 3-D reference at h0/d0 = {min(ratios):g}; every case's ratio, interval "
                "and contact filter is in the measurements (docs/mdr-vs-3d.md reads them).")
     resolution = (f"{realizations} realizations of {positions} positions per case; 95 % intervals from the "
