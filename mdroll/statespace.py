@@ -115,12 +115,13 @@ class ModalForm:
         on_axis = (np.abs(zeros.real) <= CROSSING_TOLERANCE * np.abs(zeros)) & (zeros.imag > 0)
         return np.unique(np.round(zeros.imag[on_axis] / TWO_PI, 9))
 
-    def is_passive(self) -> bool:
+    def is_passive(self, edges=None) -> bool:
         """Whether ``Im H(i omega) <= 0`` at every omega > 0, decided exactly: Im H keeps its
-        sign between two :meth:`crossings`, so it is tested at one point of each interval
-        between them (and below the first and above the last), with :data:`PASSIVITY_TOLERANCE`
-        relative to |H| for rounding. Stability (every Re p < 0) is the modal form's own."""
-        edges = self.crossings()
+        sign between two :meth:`crossings` (``edges``, computed if not given), so it is tested at
+        one point of each interval between them (and below the first and above the last), with
+        :data:`PASSIVITY_TOLERANCE` relative to |H| for rounding. Stability (every Re p < 0) is
+        the modal form's own."""
+        edges = self.crossings() if edges is None else edges
         if len(edges) == 0:
             probes = np.array([1.0])
         else:
@@ -221,12 +222,12 @@ def _residues(poles, x):
     return np.array(residues, dtype=complex)
 
 
-def _violations(form: ModalForm) -> np.ndarray:
+def _violations(form: ModalForm, crossings) -> np.ndarray:
     """Frequencies (Hz) where ``Im H > 0``: the local maxima of ``Im H / |H|`` on 200 points of
-    each interval between :meth:`ModalForm.crossings` that violates and every tenth point where
-    it does, and for an unbounded last
-    interval also 2, 10, 100 and 1000 times its start."""
-    edges = np.concatenate([[0.0], form.crossings(), [np.inf]])
+    each interval between the form's ``crossings`` (:meth:`ModalForm.crossings`) that violates
+    and every tenth point where it does, and for an unbounded last interval also 2, 10, 100 and
+    1000 times its start."""
+    edges = np.concatenate([[0.0], crossings, [np.inf]])
     points = []
     for lo, hi in zip(edges[:-1], edges[1:]):
         start = lo if lo > 0 else (1e-3 * hi if np.isfinite(hi) else 1e-3)
@@ -273,9 +274,10 @@ def passive_residues(s, h, weight, poles, rounds: int):
     at_infinity = np.concatenate([[1.0] if p.imag == 0 else [2.0, 0.0] for p in poles]) / scale
     points = np.zeros(0)
     for _ in range(rounds):
-        if form.is_passive():
+        edges = form.crossings()
+        if form.is_passive(edges):
             break
-        points = np.union1d(points, _violations(form))
+        points = np.union1d(points, _violations(form, edges))
         rows = np.vstack([_bases(1j * TWO_PI * points, poles).imag / scale, -at_infinity])
         bound = PASSIVITY_MARGIN * np.abs(np.append(form.response(points), 0.0))
         # rows (x0 + r_inv y) <= -bound, i.e. (-rows r_inv) y >= bound + rows x0

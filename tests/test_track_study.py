@@ -16,10 +16,8 @@ def study():
     return record, {(c["track"], c["offset_dB"]): c for c in record["cases"]}
 
 
-@pytest.mark.xfail(strict=True, reason="the rail's fit near the contact resonance (docs/track.md)")
 def test_track_study_small_roughness_is_the_chain(study):
-    """Within 0.5 dB of the chain on the same realizations: not met by today's fit of the soft
-    pad (0.10-0.15 dB low at 1-2.5 kHz, amplified near the contact resonance; docs/track.md)."""
+    """Within 0.5 dB of the chain on the same realizations."""
     record, cases = study
     small = cases[("ballasted-soft-pad", -40.0)]
     assert record["passed"] and small["small_roughness_passed"]

@@ -1,10 +1,13 @@
 """mdroll.wheel: the rigid wheel is today's mass; the modal wheel's receptance against its modes."""
 
+import argparse
+import json
 import math
 
 import numpy as np
 import pytest
 
+from mdroll import Params, run_ensemble
 from mdroll.errors import ParameterError
 from mdroll.wheel import PRESETS, STANDARD_920_MODES, Wheel
 
@@ -66,3 +69,26 @@ def test_settings_apply_the_preset_then_the_keys():
         Wheel.from_settings({"wheel.mass": "heavy"})
     with pytest.raises(ParameterError, match="wheel.suspension_loss = True .* not a bool"):
         Wheel(suspension_loss=True)
+
+
+def test_rigid_wheel_mass_is_the_runs_mass(cli, tmp_path):
+    """``--set wheel.mass`` of the rigid wheel is the run's m: the CLI's run equals the API's run with
+    m = 600; an m given beside it that differs is refused, and so is the API's rigid wheel of
+    another mass."""
+    from mdroll.cli.common import rigid_wheel_mass
+
+    proc = cli("run", "--mode", "coupled", "--set", "L=0.03", "--set", "dx=2e-5", "--realizations", "1",
+               "--device", "cpu", "--no-progress", "--set", "wheel.mass=600", "--out", str(tmp_path / "run"))
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads((tmp_path / "run" / "summary.json").read_text())["params"]["m"] == 600.0
+    params = Params(L=0.03, dx=2e-5)
+    direct = run_ensemble(params.replace(m=600.0), seed=0, realizations=1, mode="coupled", device="cpu", progress=False)
+    with np.load(tmp_path / "run" / "spectra.npz") as data:
+        np.testing.assert_allclose(data["accel_psd"], direct.accel_psd, rtol=1e-12)
+    given = argparse.Namespace(set=["m=500", "wheel.mass=600"])
+    with pytest.raises(ParameterError, match="wheel.mass = 600 kg is not allowed with m = 500 kg"):
+        rigid_wheel_mass(given, params, Wheel(mass=600.0))
+    assert rigid_wheel_mass(argparse.Namespace(set=["m=700"]), params.replace(m=700.0), Wheel()) == (
+        params.replace(m=700.0), Wheel(mass=700.0))
+    with pytest.raises(ParameterError, match="wheel.mass = 600 kg"):
+        run_ensemble(params, realizations=1, mode="coupled", wheel=Wheel(mass=600.0), device="cpu", progress=False)

@@ -227,6 +227,24 @@ def build_structures(args):
     return tuple(made)
 
 
+def rigid_wheel_mass(args, params: Params, wheel):
+    """``(params, wheel)`` with one mass for the rigid wheel, which is the run's mass m (eq 13):
+    ``wheel.mass`` given (``--set`` or the config file's ``[wheel]`` table) sets m, and an m given
+    beside it that differs is refused (ParameterError); otherwise the rigid wheel takes m. A modal
+    wheel (its unsprung mass is its own) and no wheel are returned as they are."""
+    if wheel is None or wheel.kind != "rigid":
+        return params, wheel
+    path = getattr(args, "config", None)
+    given = [key for key, _ in (config_structures(path)["wheel"] if path else []) + _settings(args)]
+    if "wheel.mass" not in given:
+        return params, wheel.with_values(mass=params.m)
+    m_given = "m" in [key for key, _ in _settings(args)] or bool(path and "m" in load_config(path))
+    if m_given and params.m != wheel.mass:
+        raise ParameterError(f"wheel.mass = {wheel.mass:g} kg is not allowed with m = {params.m:g} kg: the rigid "
+                             "wheel's mass is the run's m; give one of them")
+    return params.replace(m=wheel.mass), wheel
+
+
 def format_value(value) -> str:
     """A parameter's value for a table: 6 significant digits for floats."""
     return f"{value:.6g}" if isinstance(value, float) else str(value)

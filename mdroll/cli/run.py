@@ -25,7 +25,7 @@ from ..ensemble.validity import parameter_concerns, result_concerns
 from ..errors import SchedulerLost, UsageError
 from ..files import atomic_write, remove_stale_temporaries
 from ..railway.report import write_band_outputs
-from .common import (build_params, build_structures, check_output, cluster_options, cluster_runner, device_option,
+from .common import (build_params, build_structures, rigid_wheel_mass, check_output, cluster_options, cluster_runner, device_option,
                      format_value, lock, output_dir, output_options, param_options)
 
 #: What ``run`` and ``merge`` write; ``--force`` removes the old ones first, so that a finished
@@ -84,6 +84,8 @@ def execute(args) -> int:
         params, count = build_params(args)
         settings = _settings(args, RUN_DEFAULTS)
         realizations = _realizations(args, count)
+    track, wheel = build_structures(args)
+    params, wheel = rigid_wheel_mass(args, params, wheel)
     _check_settings(settings, args.batch)
     _refuse_outside_validity(args, params)
     memory = None
@@ -94,7 +96,6 @@ def execute(args) -> int:
             raise UsageError(f"--memory-limit {args.memory_limit:g} GiB is too small: one realization of "
                              f"{params.n_points} springs needs {need / 2**30:.3g} GiB (a batch gets half the limit)")
     check_run_fits(params, device, memory, settings["mode"])
-    track, wheel = build_structures(args)
     if not args.resume:
         out = output_dir(args, clear=RUN_OUTPUTS + (CHECKPOINT,))
     for name in RUN_OUTPUTS + (CHECKPOINT,):  # the directory is locked: no other writer

@@ -179,6 +179,8 @@ def run_ensemble(
                              f"response is {INTEGRATORS[0]!r}; use mode = 'coupled'")
     (algorithm_entry if mode == "decoupled" else coupled_entry)(algorithm)
     check_choice("boundary", boundary, BOUNDARIES)
+    if wheel is not None:
+        wheel.check_run_mass(params.m)
     compliance = contact_compliance(track and track.structure(), wheel)
     if mode == "decoupled" and compliance[0] is not None:
         raise ParameterError("track and wheel other than rigid are not allowed with mode = 'decoupled': "

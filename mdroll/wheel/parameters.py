@@ -92,6 +92,13 @@ class Wheel(Presettable):
         if self.kind == "rigid" and len(modes):
             raise ParameterError("wheel.modes is not allowed with wheel.kind = 'rigid': use kind 'modal'")
 
+    def check_run_mass(self, m: float) -> None:
+        """Refuses (ParameterError) a rigid wheel whose mass is not the run's mass ``m`` (kg): the
+        rigid wheel is the mass of eq 13, ``Params.m``, in the run, its spectra and its summary."""
+        if self.kind == "rigid" and self.mass != m:
+            raise ParameterError(f"wheel.mass = {self.mass:g} kg is not allowed with m = {m:g} kg: the rigid wheel "
+                                 "is the run's mass m; set m (or wheel.mass on the command line, which sets m)")
+
     def receptance(self, f):
         """Radial point receptance alpha_W (m/N, complex) at frequencies ``f`` (Hz, > 0): the
         module docstring's formula."""
