@@ -205,6 +205,8 @@ COMMANDS = {
     # track.md: the track study (quick: minutes of CPU; full: GPU) and the inverse fit on a track
     "mdroll roughness check --only track --device cpu --out track-quick": ("options", "mdroll roughness check"),
     "mdroll roughness check --full --only track --device cuda --out track-full": ("options", "mdroll roughness check"),
+    "python docs/track/make_study_tables.py benchmarks/results/track_study_quick.json":
+        ("run", "python docs/track/make_study_tables.py benchmarks/results/track_study_quick.json", "."),
     "mdroll invert run-on-track --known m=500 --known R=0.5 --known E=2.1e11 --known nu=0.3 --band 300:20000Hz "
     "--correction none": ("options", "mdroll invert"),
     "mdroll invert accel.csv --frequency-unit Hz --sided one --density Hz --passes 30 --known v0=10 --known m=500 "
