@@ -1,14 +1,16 @@
 """Ensembles on Dask distributed: many specs, many workers, one answer.
 
 A list of :class:`~mdroll.ensemble.spec.EnsembleSpec` is cut into *work units* (a spec's slice of
-consecutive realizations, :meth:`EnsembleSpec.split`), by default a worker's whole share, run in
-batches sized to the smallest worker's device (:func:`default_unit_size`). Each unit runs as one Dask task on a worker, on that worker's device,
-and its :class:`~mdroll.ensemble.result.EnsembleResult` (per-bin mean PSDs and their standard
-errors, force sums, counts; never a per-realization series) stays on that worker. When all are
-done, each worker merges its units of each spec, the workers' partial results are merged in pairs
-on the workers, and the client receives one result per spec: the exact pairwise merge of means
-and variances (:meth:`EnsembleResult.merge`, Chan et al.), so the result equals a one-process run
-to rounding (<= 1e-12 relative) whatever the partition and the number of workers: every
+consecutive realizations, :meth:`EnsembleSpec.split`), by default a worker's whole share
+(:func:`default_unit_size`), which the worker runs as one process would: in batches sized from
+its own device's free memory. Each unit runs as one Dask task on a worker, on that worker's
+device, and becomes a :data:`Part` that stays on that worker: its per-bin spectra (means and
+standard errors of both PSDs) in one contiguous float64 array, which Dask ships as one frame,
+beside the run's scalars (never a per-realization series). When all are done, each worker
+merges its parts of each spec, the workers' parts are merged in pairs on the workers, and the
+client receives at most two parts per spec and makes the result: the exact pairwise merge of
+means and variances (:func:`merge_parts`, Chan et al.), so the result equals a one-process run to
+rounding (<= 1e-12 relative) whatever the partition and the number of workers: every
 realization derives from (seed, realization index) alone.
 
 Faults. A worker that dies loses only its units: Dask runs them again on another worker (the
@@ -29,6 +31,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import contextlib
+import dataclasses
 import json
 import logging
 import os
@@ -37,10 +40,11 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 from tqdm.auto import tqdm
 
-from .devices import cpu_cores, resolve_device
-from .ensemble.batching import default_batch
+from .devices import cpu_cores
+from .ensemble.psd import RunningMoments, wavenumbers
 from .ensemble.result import EnsembleResult
 from .ensemble.spec import EnsembleSpec
 from .errors import ParameterError, SchedulerLost
@@ -52,6 +56,16 @@ from .errors import ParameterError, SchedulerLost
 LOOPBACK = "127.0.0.1"
 #: The file of a checkpoint directory that names its run's specs and unit sizes.
 MANIFEST = "manifest.json"
+#: The rows of a part's spectra array, per bin: each PSD's mean over the part's realizations and
+#: its standard error.
+SPECTRA = ("force_psd", "force_psd_stderr", "accel_psd", "accel_psd_stderr")
+#: A part of a spec's result as the workers hold and ship it: ``(spectra, bare, spans)``, the
+#: (4, bins) float64 array of :data:`SPECTRA` first (so that Dask sends it as one frame, not
+#: inside a pickle), the result's other fields (an :class:`EnsembleResult` whose arrays are
+#: empty and whose realizations are in ``spans``) and its realizations as sorted, disjoint
+#: ``(first, count)`` ranges.
+Part = tuple
+_EMPTY = np.empty(0)
 
 
 @dataclass(frozen=True)
@@ -78,43 +92,61 @@ def work_units(specs: Sequence[EnsembleSpec], sizes: int | Sequence[int]) -> lis
 def default_unit_size(total: int, workers: int) -> int:
     """Realizations per unit for ``total`` realizations on ``workers`` workers: one unit a worker,
     its whole share, which its device runs in as few batches as its memory allows. A second unit
-    a worker would let a faster worker take it, but costs a unit's start and a merge of host
-    NumPy over every bin (0.1 s at 2^20 springs) more than it balances between equal GPUs
-    (docs/distributed.md, "Measured"); a cluster of unequal devices passes ``unit_size``."""
+    a worker would let a faster worker take it, but costs a unit's start and a merge over every
+    bin more than it balances between equal GPUs (docs/distributed.md, "Measured"); a cluster
+    of unequal devices passes ``unit_size``."""
     return max(1, -(-total // max(1, workers)))
 
 
-def worker_batches(specs: Sequence[EnsembleSpec], device: str, options: dict, checkpoint: str | None) -> list[int]:
-    """Run on each worker before the units: the realizations its device runs at once for each
-    spec (``options``' batch, else from its free memory), and the check that it sees the
-    checkpoint directory."""
+def run_unit(spec: EnsembleSpec, device: str, options: dict, checkpoint: str | None = None,
+             uid: str = "") -> Part:
+    """The task a worker runs: one unit's ensemble on the worker's own device, batched from its
+    free memory as in one process (unless ``options`` give ``batch`` or ``memory_limit``), as a
+    :data:`Part` that stays on the worker (:func:`merge_parts` reduces it there); with a
+    checkpoint the worker also writes the result to ``checkpoint/unit-<uid>.npz`` (atomically)."""
     if checkpoint is not None and not (Path(checkpoint) / MANIFEST).is_file():
         raise ParameterError(f"checkpoint {checkpoint} is not visible to every worker: on a cluster of several "
                              "machines it must be on a file system that all of them share")
-    if options.get("batch") is not None:
-        return [options["batch"]] * len(specs)
-    device = resolve_device(device)
-    return [default_batch(s.params, device, options.get("memory_limit"), wanted=s.realizations, mode=s.mode)
-            for s in specs]
-
-
-def run_unit(spec: EnsembleSpec, device: str, options: dict, checkpoint: str | None = None,
-             uid: str = "") -> EnsembleResult:
-    """The task a worker runs: one unit's ensemble, on the worker's own device. Its result stays
-    on the worker (:func:`merge_results` reduces it there); with a checkpoint the worker also
-    writes it to ``checkpoint/unit-<uid>.npz`` (atomically)."""
     result = spec.run(device=device, progress=False, **options)
     if checkpoint is not None:
         result.save(Path(checkpoint) / f"unit-{uid}.npz")
-    return result
+    return part_of(result, spec.first)
 
 
-def merge_results(*results: EnsembleResult) -> EnsembleResult:
-    """One result of several of one spec (:meth:`EnsembleResult.merge_own`: the units' results
-    are the runner's own, made by :func:`run_unit` or read back from its checkpoint by
-    :meth:`EnsembleResult.load`, which checks them; one result is itself): the reduction's task
-    on the workers, and its last step on the client."""
-    return results[0] if len(results) == 1 else EnsembleResult.merge_own(list(results))
+def part_of(result: EnsembleResult, first: int) -> Part:
+    """The :data:`Part` of a result of the consecutive realizations from ``first``."""
+    bare = dataclasses.replace(result, q=_EMPTY, omega=_EMPTY, **dict.fromkeys(SPECTRA, _EMPTY), realizations=[])
+    return np.stack([getattr(result, name) for name in SPECTRA]), bare, ((first, result.n_real),)
+
+
+def merge_parts(*parts: Part) -> Part:
+    """One part of several of one spec (one is itself): the reduction's task on the workers, and
+    its last step on the client. The spectra merge exactly (Chan et al., as the batches of one
+    run), all fields at once; the other fields and the refusals of parts that do not belong
+    together are :meth:`EnsembleResult.merge_own`'s, on the arrayless results."""
+    if len(parts) == 1:
+        return parts[0]
+    bare = EnsembleResult.merge_own([bare for _, bare, _ in parts])
+    spans = tuple(sorted(span for _, _, spans in parts for span in spans))
+    for (first, count), (after, _) in zip(spans, spans[1:]):
+        if first + count > after:
+            raise ParameterError(f"cannot merge parts that share realization {after} (it would count twice)")
+    moments = RunningMoments(parts[0][0][0::2].shape)  # the force's and acceleration's bins at once
+    for spectra, part, _ in parts:
+        n = part.n_real
+        moments.merge(n, spectra[0::2], spectra[1::2] ** 2 * n * (n - 1))
+    spectra = np.empty_like(parts[0][0])
+    spectra[0::2], spectra[1::2] = moments.mean_and_stderr()
+    return spectra, bare, spans
+
+
+def result_of(part: Part) -> EnsembleResult:
+    """The :class:`EnsembleResult` of a part: its grid (as the run computes it), spectra and
+    realizations in order."""
+    spectra, bare, spans = part
+    q = wavenumbers(bare.steps, bare.params.dx)
+    return dataclasses.replace(bare, q=q, omega=q * bare.params.v0, **dict(zip(SPECTRA, spectra)),
+                               realizations=[i for first, count in spans for i in range(first, first + count)])
 
 
 class DaskRunner:
@@ -143,6 +175,14 @@ class DaskRunner:
         """The number of workers the scheduler knows now."""
         return len(self.client.scheduler_info()["workers"])
 
+    def _workers_now(self) -> int:
+        """The number of workers, once there is one."""
+        count = self.workers()
+        if count == 0:
+            self.client.wait_for_workers(1)
+            count = self.workers()
+        return count
+
     def run_specs(self, specs: Iterable[EnsembleSpec], device: str = "auto", progress: bool = False,
                   **options) -> list[EnsembleResult]:
         """Every spec's result (see the module docstring): units of a worker's share run on the
@@ -155,9 +195,8 @@ class DaskRunner:
         futures = {}
         try:
             saved = None if self.checkpoint is None else self._manifest(specs)
-            batches = self._batches(specs, device, options, checkpoint, run)
             total = sum(s.realizations for s in specs)
-            sizes = saved or [self.unit_size or default_unit_size(total, self.workers())] * len(specs)
+            sizes = saved or [self.unit_size or default_unit_size(total, self._workers_now())] * len(specs)
             if self.checkpoint is not None and saved is None:
                 self._manifest(specs, sizes)
             units = work_units(specs, sizes)
@@ -166,9 +205,7 @@ class DaskRunner:
             bar = _progress(len(units), progress)
             bar.update(len(units) - len(todo))
             for u in todo:
-                unit_options = options if "batch" in options or "memory_limit" in options else {
-                    **options, "batch": min(batches[u.spec_index], u.spec.realizations)}
-                future = self.client.submit(run_unit, u.spec, device, unit_options, checkpoint, u.uid,
+                future = self.client.submit(run_unit, u.spec, device, options, checkpoint, u.uid,
                                             key=f"mdroll-unit-{run}-{u.uid}")
                 futures[future] = u
             try:
@@ -189,33 +226,15 @@ class DaskRunner:
             for future in futures:  # after an error or an interrupt: stop what is still queued
                 if not future.done():
                     future.cancel()
-        results = []
-        for i in range(len(specs)):
-            mine = ([parts[i]] if i in parts else []) + [done[u.uid] for u in units
-                                                         if u.spec_index == i and u.uid in done]
-            merged = merge_results(*mine)
-            merged.realizations = sorted(merged.realizations)
-            results.append(merged)
-        return results
-
-    def _batches(self, specs, device, options, checkpoint, run) -> list[int]:
-        """Each spec's batch: the smallest over the workers (:func:`worker_batches`)."""
-        from distributed import wait
-
-        self.client.wait_for_workers(1)
-        workers = list(self.client.scheduler_info()["workers"])
-        probes = [self.client.submit(worker_batches, specs, device, options, checkpoint, workers=[w],
-                                     allow_other_workers=True, key=f"mdroll-batches-{run}-{n}")
-                  for n, w in enumerate(workers)]
-        wait(probes)
-        return [min(column) for column in zip(*self.client.gather(probes))]
+        return [result_of(merge_parts(*parts.get(i, []), *(done[u.uid] for u in units
+                                                           if u.spec_index == i and u.uid in done)))
+                for i in range(len(specs))]
 
     def _reduce_on_workers(self, futures: dict, run: str) -> dict:
-        """Each worker's units of each spec merged on that worker, then the workers' partial
-        results merged in pairs on the workers (a tree: log2 of the workers' number of steps, each
-        moving one partial result between two workers) down to two, which the client receives at
-        once and merges: one result per spec. A lost worker's units are computed again by Dask,
-        from their tasks."""
+        """Each worker's parts of each spec merged on that worker, then the workers' parts merged in
+        pairs on the workers (a tree: log2 of the workers' number of steps, each moving one part
+        between two workers) down to two, which the client receives at once: each spec's list of
+        at most two parts. A lost worker's units are computed again by Dask, from their tasks."""
         holders = self.client.who_has(list(futures))
         groups: dict = {}
         for future, unit in futures.items():
@@ -224,15 +243,15 @@ class DaskRunner:
         level: dict = {}
         for n, ((spec_index, where), group) in enumerate(groups.items()):
             level.setdefault(spec_index, []).append(group[0] if len(group) == 1 else self.client.submit(
-                merge_results, *group, workers=None if where is None else [where], allow_other_workers=True,
+                merge_parts, *group, workers=None if where is None else [where], allow_other_workers=True,
                 key=f"mdroll-merge-{run}-{n}"))
         step = 0
         while any(len(parts) > 2 for parts in level.values()):  # the last two go to the client at once
             step += 1
-            level = {i: [self.client.submit(merge_results, *parts[k:k + 2], key=f"mdroll-merge-{run}-{step}-{i}-{k}")
+            level = {i: [self.client.submit(merge_parts, *parts[k:k + 2], key=f"mdroll-merge-{run}-{step}-{i}-{k}")
                          if k + 1 < len(parts) else parts[k] for k in range(0, len(parts), 2)]
                      for i, parts in level.items()}
-        return {i: merge_results(*self.client.gather(parts)) for i, parts in level.items()}
+        return self.client.gather(level)
 
     # -- checkpoint: one file per finished unit (written by the workers), and a manifest of the
     # run's specs and unit sizes (a resumed run keeps them, whatever its number of workers)
@@ -251,11 +270,17 @@ class DaskRunner:
         return saved["sizes"]
 
     def _load_checkpoint(self, units) -> dict:
-        """The finished units' results, by id."""
-        if self.checkpoint is None:
-            return {}
-        return {u.uid: EnsembleResult.load(path) for u in units
-                if (path := self.checkpoint / f"unit-{u.uid}.npz").exists()}
+        """The finished units' parts, by id; a unit's file must hold its realizations."""
+        parts = {}
+        for u in units if self.checkpoint is not None else ():
+            path = self.checkpoint / f"unit-{u.uid}.npz"
+            if path.exists():
+                result = EnsembleResult.load(path)
+                if result.realizations != list(u.spec.indices):
+                    raise ParameterError(f"{path} does not hold the realizations {u.spec.first} to "
+                                         f"{u.spec.first + u.spec.realizations - 1} its name gives: it was edited")
+                parts[u.uid] = part_of(result, u.spec.first)
+        return parts
 
 
 def _write_atomic(path: Path, data: bytes) -> None:
@@ -276,7 +301,9 @@ def local_cluster(workers: int, device: str = "auto", verbose: bool = False):
     ``"auto"`` where GPUs are present): one process per GPU, ``workers`` at most the number of
     GPUs, each pinned to its GPU by ``CUDA_VISIBLE_DEVICES`` before Warp starts in it (so each
     worker's ``cuda:0`` is its own GPU). ``dask-cuda``'s ``LocalCUDACluster`` does the same; this
-    spec needs only ``distributed``. Dask's logs below warnings are shown only when ``verbose``.
+    spec needs only ``distributed``. The client takes the units' parts from the workers directly,
+    not through the scheduler (one hop, not two: the workers are on this machine). Dask's logs
+    below warnings are shown only when ``verbose``.
     """
     from distributed import Client, Nanny, Scheduler, SpecCluster
 
@@ -303,7 +330,7 @@ def local_cluster(workers: int, device: str = "auto", verbose: bool = False):
     scheduler = {"cls": Scheduler, "options": {"host": LOOPBACK, "dashboard": False,
                                                    "dashboard_address": f"{LOOPBACK}:0"}}
     cluster = SpecCluster(workers=spec, scheduler=scheduler, silence_logs=level)
-    return Client(cluster)
+    return Client(cluster, direct_to_workers=True)
 
 
 @contextlib.contextmanager
