@@ -14,13 +14,12 @@ shrinks a worker's batches. In process and on each cluster alike, every workload
 are recorded; the clusters' start-up and warm-up beside). ``--small`` runs the same at a size
 for the CPU (``--device cpu``: worker processes of one core each). Each cluster run also records
 where its time went, on the host's clock: from the call to the first unit's start, the units'
-span, from the last unit's end to the result (the gather of the parts and their merge, of which
-the client's reduction alone), and per task kind (unit, merge) the workers' compute and transfer
-seconds (Dask's task stream). Dask is imported in ``main`` only.
+span, from the last unit's end to the result (the transfers of the parts and their merge), and
+per task kind (unit, merge) the workers' compute and transfer seconds (Dask's task stream). Dask
+is imported in ``main`` only.
 """
 
 import argparse
-import contextlib
 import dataclasses
 import json
 import multiprocessing
@@ -105,33 +104,12 @@ def largest_difference(result, reference: dict) -> float:
     return max(float(np.max(np.abs(getattr(result, f) - reference[f])) / np.max(np.abs(reference[f]))) for f in FIELDS)
 
 
-@contextlib.contextmanager
-def reduction_clock(runner):
-    """The host clock (``time.time``, the task stream's) at the start and the end of each of the
-    runner's reductions of the units' parts (``_reduce_on_workers``: the merges and the gather),
-    by wrapping that method of this runner for the duration."""
-    marks = []
-    method = runner._reduce_on_workers
-
-    def clocked(*a, **k):
-        began = time.time()
-        try:
-            return method(*a, **k)
-        finally:
-            marks.append((began, time.time()))
-    runner._reduce_on_workers = clocked
-    try:
-        yield marks
-    finally:
-        del runner._reduce_on_workers
-
-
-def phases(tasks: list, called: float, returned: float, reduction: tuple) -> dict:
+def phases(tasks: list, called: float, returned: float) -> dict:
     """Where a cluster run's time went, on the host clock (``called`` and ``returned``: the
-    call's start and end; ``reduction``: the runner's reduction's): seconds from the call to the
+    call's start and end, ``time.time``, the task stream's clock): seconds from the call to the
     first unit's start, the units' span (first start to last end), from the last unit's end to
-    the result, of which the reduction (merges and gather) and the client's merge and result
-    after it; and per task kind (the key's second word: unit, merge) the tasks' count and their
+    the result (the parts' merges and transfers not overlapped with the units, and the client's
+    merge); and per task kind (the key's second word: unit, merge) the tasks' count and their
     compute and transfer seconds summed."""
     kinds = {}
     for t in tasks:
@@ -143,8 +121,9 @@ def phases(tasks: list, called: float, returned: float, reduction: tuple) -> dic
     units = [s for t in tasks if str(t["key"]).startswith("mdroll-unit") for s in t["startstops"]
              if s["action"] == "compute"]
     first, last = min(s["start"] for s in units), max(s["stop"] for s in units)
+    ends = sorted(s["stop"] for s in units)
     return {"to_first_unit_s": first - called, "units_span_s": last - first, "after_units_s": returned - last,
-            "reduction_s": reduction[1] - reduction[0], "client_merge_s": returned - reduction[1], "tasks": kinds}
+            "units_end_spread_s": ends[-1] - ends[0], "tasks": kinds}
 
 
 def commit() -> str:
@@ -187,13 +166,13 @@ def main() -> None:
                 warm = warm_up(spec, lambda s: DaskRunner(client, unit_size=1).run_specs([s], device=args.device))
                 seconds, found = [], []
                 for _ in range(args.repeat):
-                    with distributed.get_task_stream(client) as stream, reduction_clock(runner) as marks:
+                    with distributed.get_task_stream(client) as stream:
                         called = time.time()
                         t1 = time.perf_counter()
                         (result,) = runner.run_specs([spec], device=args.device)
                         seconds.append(time.perf_counter() - t1)
                         returned = time.time()
-                    found.append(phases(stream.data, called, returned, marks[-1]))
+                    found.append(phases(stream.data, called, returned))
                 middle = median_run(seconds)
                 entry[f"workers_{workers}_s"], entry[f"workers_{workers}_runs_s"] = seconds[middle], seconds
                 entry[f"workers_{workers}_phases"], entry[f"workers_{workers}_phases_runs"] = found[middle], found

@@ -8,7 +8,8 @@ device, and becomes a :data:`Part` that stays on that worker: its per-bin spectr
 standard errors of both PSDs) in one contiguous float64 array, which Dask ships as one frame,
 beside the run's scalars (never a per-realization series). When all are done, each worker
 merges its parts of each spec, the workers' parts are merged in pairs on the workers, and the
-client receives at most two parts per spec and makes the result: the exact pairwise merge of
+client receives at most two parts per spec (as their units end, where a spec has no more
+units) and makes the result: the exact pairwise merge of
 means and variances (:func:`merge_parts`, Chan et al.), so the result equals a one-process run to
 rounding (<= 1e-12 relative) whatever the partition and the number of workers: every
 realization derives from (seed, realization index) alone.
@@ -32,10 +33,12 @@ from __future__ import annotations
 import concurrent.futures
 import contextlib
 import dataclasses
+import itertools
 import json
 import logging
 import os
 import uuid
+from collections import Counter
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -146,7 +149,7 @@ def result_of(part: Part) -> EnsembleResult:
     spectra, bare, spans = part
     q = wavenumbers(bare.steps, bare.params.dx)
     return dataclasses.replace(bare, q=q, omega=q * bare.params.v0, **dict(zip(SPECTRA, spectra)),
-                               realizations=[i for first, count in spans for i in range(first, first + count)])
+                               realizations=list(itertools.chain.from_iterable(range(f, f + n) for f, n in spans)))
 
 
 class DaskRunner:
@@ -208,14 +211,21 @@ class DaskRunner:
                 future = self.client.submit(run_unit, u.spec, device, options, checkpoint, u.uid,
                                             key=f"mdroll-unit-{run}-{u.uid}")
                 futures[future] = u
+            # at most two units a spec (one a worker, on one or two workers): their parts are the
+            # reduction's last level, which the client takes as each unit ends
+            early = max(Counter(u.spec_index for u in todo).values(), default=0) <= 2
+            fetched: dict = {}
             try:
-                for future in as_completed(futures):
+                for item in as_completed(futures, with_results=early):
+                    future = item[0] if early else item
                     if future.status != "finished":
                         future.result()  # re-raises a unit's error (a ParameterError names its parameter)
+                    if early:
+                        fetched.setdefault(futures[future].spec_index, []).append(item[1])
                     bar.update(1)
             finally:
                 bar.close()
-            parts = self._reduce_on_workers(futures, run)
+            parts = fetched if early else self._reduce_on_workers(futures, run)
         except (OSError, TimeoutError, concurrent.futures.CancelledError) as exc:
             if self.client.status == "running":  # the scheduler is there: not a lost connection
                 raise

@@ -126,9 +126,12 @@ def test_any_number_of_workers_equals_one_process(cluster, reference, workers):
         assert_same(run_specs(specs(), device="cpu", runner=DaskRunner(client, unit_size=unit_size)), reference)
 
 
-def test_killed_worker_loses_and_doubles_nothing(cluster, reference):
+@pytest.mark.parametrize("unit_size", [1, None])
+def test_killed_worker_loses_and_doubles_nothing(cluster, reference, unit_size):
+    """Units merged on the workers (several a spec) and parts taken by the client as their units
+    end (one a worker)."""
     _, client = cluster
-    runner = DaskRunner(client, unit_size=1)
+    runner = DaskRunner(client, unit_size=unit_size)
     pids = client.run(os.getpid)  # worker address -> process id
     killed = []
 
