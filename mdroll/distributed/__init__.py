@@ -4,15 +4,15 @@ A list of :class:`~mdroll.ensemble.spec.EnsembleSpec` is cut into *work units* (
 consecutive realizations, :meth:`EnsembleSpec.split`), by default a worker's whole share
 (:func:`default_unit_size`), which the worker runs as one process would: in batches sized from
 its own device's free memory. Each unit runs as one Dask task on a worker, on that worker's
-device, and becomes a :data:`Part` that stays on that worker: its per-bin spectra (means and
-standard errors of both PSDs) in one contiguous float64 array, which Dask ships as one frame,
-beside the run's scalars (never a per-realization series). When all are done, each worker
-merges its parts of each spec, the workers' parts are merged in pairs on the workers, and the
-client receives at most two parts per spec (as their units end, where a spec has no more
-units) and makes the result: the exact pairwise merge of
-means and variances (:func:`merge_parts`, Chan et al.), so the result equals a one-process run to
-rounding (<= 1e-12 relative) whatever the partition and the number of workers: every
-realization derives from (seed, realization index) alone.
+device, and becomes a part (:mod:`mdroll.distributed.parts`) that stays on that worker: its
+per-bin spectra (means and standard errors of both PSDs) in one contiguous float64 array, which
+Dask ships as one frame, beside the run's scalars (never a per-realization series). A spec of at
+most two units sends its parts to the client as each unit ends; with more, each worker merges
+its parts of each spec, the workers' parts are merged in pairs on the workers, and the client
+receives the last two. The client merges them into the result: the exact pairwise merge of
+means and variances (Chan et al.), so the result equals a one-process run to rounding (<= 1e-12
+relative) whatever the partition and the number of workers: every realization derives from
+(seed, realization index) alone.
 
 Faults. A worker that dies loses only its units: Dask runs them again on another worker (the
 finished ones too, their results being lost with it), each under its own key, so nothing is
@@ -23,19 +23,15 @@ computes only the missing units.
 
 Warp across processes. Workers are separate processes started by *spawn* (Dask's nanny never
 forks a process that holds a CUDA context), and each GPU worker is pinned to its GPU through
-``CUDA_VISIBLE_DEVICES`` before it imports Warp (:func:`local_cluster`), so it sees its GPU as
-``cuda:0``. Warp's kernel cache is shared: Warp builds each module in a private directory and
-renames it into place, so concurrent compilation by several workers is safe.
+``CUDA_VISIBLE_DEVICES`` before it imports Warp (:mod:`mdroll.distributed.cluster`), so it sees
+its GPU as ``cuda:0``. Warp's kernel cache is shared: Warp builds each module in a private
+directory and renames it into place, so concurrent compilation by several workers is safe.
 """
 
 from __future__ import annotations
 
 import concurrent.futures
-import contextlib
-import dataclasses
-import itertools
 import json
-import logging
 import os
 import uuid
 from collections import Counter
@@ -43,32 +39,23 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 from tqdm.auto import tqdm
 
-from .devices import cpu_cores
-from .ensemble.psd import RunningMoments, wavenumbers
-from .ensemble.result import EnsembleResult
-from .ensemble.spec import EnsembleSpec
-from .errors import ParameterError, SchedulerLost
+from ..ensemble.result import EnsembleResult
+from ..ensemble.spec import EnsembleSpec
+from ..errors import ParameterError, SchedulerLost
+from .cluster import connect, local_cluster
+from .parts import Part, PartSum, merge_parts, part_of, result_of
+
+# the clients and the parts, from here as from their modules
+__all__ = ["DaskRunner", "WorkUnit", "connect", "default_unit_size", "local_cluster", "merge_parts", "part_of",
+           "result_of", "run_unit", "saved_specs", "work_units"]
 
 # Dask's ``distributed`` is an optional dependency (the ``distributed`` extra): the functions that
-# need it import it, so that this module imports without it.
+# need it import it, so that this package imports without it.
 
-#: A local cluster listens on the loopback interface only: it serves no one outside this machine.
-LOOPBACK = "127.0.0.1"
 #: The file of a checkpoint directory that names its run's specs and unit sizes.
 MANIFEST = "manifest.json"
-#: The rows of a part's spectra array, per bin: each PSD's mean over the part's realizations and
-#: its standard error.
-SPECTRA = ("force_psd", "force_psd_stderr", "accel_psd", "accel_psd_stderr")
-#: A part of a spec's result as the workers hold and ship it: ``(spectra, bare, spans)``, the
-#: (4, bins) float64 array of :data:`SPECTRA` first (so that Dask sends it as one frame, not
-#: inside a pickle), the result's other fields (an :class:`EnsembleResult` whose arrays are
-#: empty and whose realizations are in ``spans``) and its realizations as sorted, disjoint
-#: ``(first, count)`` ranges.
-Part = tuple
-_EMPTY = np.empty(0)
 
 
 @dataclass(frozen=True)
@@ -105,7 +92,8 @@ def run_unit(spec: EnsembleSpec, device: str, options: dict, checkpoint: str | N
              uid: str = "") -> Part:
     """The task a worker runs: one unit's ensemble on the worker's own device, batched from its
     free memory as in one process (unless ``options`` give ``batch`` or ``memory_limit``), as a
-    :data:`Part` that stays on the worker (:func:`merge_parts` reduces it there); with a
+    :data:`~mdroll.distributed.parts.Part` that stays on the worker
+    (:func:`~mdroll.distributed.parts.merge_parts` reduces it there); with a
     checkpoint the worker also writes the result to ``checkpoint/unit-<uid>.npz`` (atomically)."""
     if checkpoint is not None and not (Path(checkpoint) / MANIFEST).is_file():
         raise ParameterError(f"checkpoint {checkpoint} is not visible to every worker: on a cluster of several "
@@ -116,42 +104,6 @@ def run_unit(spec: EnsembleSpec, device: str, options: dict, checkpoint: str | N
     return part_of(result, spec.first)
 
 
-def part_of(result: EnsembleResult, first: int) -> Part:
-    """The :data:`Part` of a result of the consecutive realizations from ``first``."""
-    bare = dataclasses.replace(result, q=_EMPTY, omega=_EMPTY, **dict.fromkeys(SPECTRA, _EMPTY), realizations=[])
-    return np.stack([getattr(result, name) for name in SPECTRA]), bare, ((first, result.n_real),)
-
-
-def merge_parts(*parts: Part) -> Part:
-    """One part of several of one spec (one is itself): the reduction's task on the workers, and
-    its last step on the client. The spectra merge exactly (Chan et al., as the batches of one
-    run), all fields at once; the other fields and the refusals of parts that do not belong
-    together are :meth:`EnsembleResult.merge_own`'s, on the arrayless results."""
-    if len(parts) == 1:
-        return parts[0]
-    bare = EnsembleResult.merge_own([bare for _, bare, _ in parts])
-    spans = tuple(sorted(span for _, _, spans in parts for span in spans))
-    for (first, count), (after, _) in zip(spans, spans[1:]):
-        if first + count > after:
-            raise ParameterError(f"cannot merge parts that share realization {after} (it would count twice)")
-    moments = RunningMoments(parts[0][0][0::2].shape)  # the force's and acceleration's bins at once
-    for spectra, part, _ in parts:
-        n = part.n_real
-        moments.merge(n, spectra[0::2], spectra[1::2] ** 2 * n * (n - 1))
-    spectra = np.empty_like(parts[0][0])
-    spectra[0::2], spectra[1::2] = moments.mean_and_stderr()
-    return spectra, bare, spans
-
-
-def result_of(part: Part) -> EnsembleResult:
-    """The :class:`EnsembleResult` of a part: its grid (as the run computes it), spectra and
-    realizations in order."""
-    spectra, bare, spans = part
-    q = wavenumbers(bare.steps, bare.params.dx)
-    return dataclasses.replace(bare, q=q, omega=q * bare.params.v0, **dict(zip(SPECTRA, spectra)),
-                               realizations=list(itertools.chain.from_iterable(range(f, f + n) for f, n in spans)))
-
-
 class DaskRunner:
     """Runs ensemble specs on a ``dask.distributed.Client``: the distributed back end of
     :func:`mdroll.run_specs` (pass it as ``runner=``).
@@ -159,7 +111,7 @@ class DaskRunner:
     Parameters
     ----------
     client : dask.distributed.Client
-        The cluster's client (:func:`local_cluster`, or ``Client("tcp://host:8786")``).
+        The cluster's client (:func:`~mdroll.distributed.cluster.local_cluster`, or ``Client("tcp://host:8786")``).
     unit_size : int, optional
         Realizations per work unit; default :func:`default_unit_size`, a worker's share.
     checkpoint : path, optional
@@ -212,20 +164,23 @@ class DaskRunner:
                                             key=f"mdroll-unit-{run}-{u.uid}")
                 futures[future] = u
             # at most two units a spec (one a worker, on one or two workers): their parts are the
-            # reduction's last level, which the client takes as each unit ends
-            early = max(Counter(u.spec_index for u in todo).values(), default=0) <= 2
-            fetched: dict = {}
+            # reduction's last level, which the client takes and merges as each unit ends
+            count = Counter(u.spec_index for u in todo)
+            early = max(count.values(), default=0) <= 2
+            sums = [PartSum(eager=early and count[i] > 1) for i in range(len(specs))]
             try:
                 for item in as_completed(futures, with_results=early):
                     future = item[0] if early else item
                     if future.status != "finished":
                         future.result()  # re-raises a unit's error (a ParameterError names its parameter)
                     if early:
-                        fetched.setdefault(futures[future].spec_index, []).append(item[1])
+                        sums[futures[future].spec_index].add(item[1])
                     bar.update(1)
             finally:
                 bar.close()
-            parts = fetched if early else self._reduce_on_workers(futures, run)
+            for i, parts in ({} if early else self._reduce_on_workers(futures, run)).items():
+                for part in parts:
+                    sums[i].add(part)
         except (OSError, TimeoutError, concurrent.futures.CancelledError) as exc:
             if self.client.status == "running":  # the scheduler is there: not a lost connection
                 raise
@@ -236,9 +191,10 @@ class DaskRunner:
             for future in futures:  # after an error or an interrupt: stop what is still queued
                 if not future.done():
                     future.cancel()
-        return [result_of(merge_parts(*parts.get(i, []), *(done[u.uid] for u in units
-                                                           if u.spec_index == i and u.uid in done)))
-                for i in range(len(specs))]
+        for u in units:
+            if u.uid in done:
+                sums[u.spec_index].add(done[u.uid])
+        return [result_of(total.part()) for total in sums]
 
     def _reduce_on_workers(self, futures: dict, run: str) -> dict:
         """Each worker's parts of each spec merged on that worker, then the workers' parts merged in
@@ -304,94 +260,9 @@ def _progress(total: int, enabled: bool):
     return tqdm(total=total, unit="unit", desc="work units", dynamic_ncols=True, disable=not enabled)
 
 
-def local_cluster(workers: int, device: str = "auto", verbose: bool = False):
-    """A ``dask.distributed.Client`` on a cluster of ``workers`` processes on this machine.
-
-    ``device`` ``"cpu"``: processes of one thread each, at most one per core. A CUDA device (or
-    ``"auto"`` where GPUs are present): one process per GPU, ``workers`` at most the number of
-    GPUs, each pinned to its GPU by ``CUDA_VISIBLE_DEVICES`` before Warp starts in it (so each
-    worker's ``cuda:0`` is its own GPU). ``dask-cuda``'s ``LocalCUDACluster`` does the same; this
-    spec needs only ``distributed``. The client takes the units' parts from the workers directly,
-    not through the scheduler (one hop, not two: the workers are on this machine). Dask's logs
-    below warnings are shown only when ``verbose``.
-    """
-    from distributed import Client, Nanny, Scheduler, SpecCluster
-
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ParameterError(f"workers = {workers!r} is not allowed: it must be a positive integer")
-    gpus = gpu_count() if device != "cpu" else 0
-    if device.startswith("cuda") and gpus == 0:
-        raise ParameterError(f"device = {device!r}: no GPU is visible to start GPU workers on")
-    if gpus and workers > gpus:
-        raise ParameterError(f"workers = {workers} is not allowed: at most {gpus}, one worker per GPU of this machine")
-    if not gpus and workers > cpu_cores():
-        raise ParameterError(f"workers = {workers} is not allowed: at most {cpu_cores()}, one CPU worker per core "
-                             "this process may use")
-    level = logging.INFO if verbose else logging.WARNING
-    visible = os.environ.get("CUDA_VISIBLE_DEVICES")
-    ordinals = visible.split(",") if visible else [str(i) for i in range(gpus)]
-    spec = {}
-    for w in range(workers):
-        env = {"OMP_NUM_THREADS": "1", "DASK_LOGGING__DISTRIBUTED": logging.getLevelName(level).lower()}
-        env["CUDA_VISIBLE_DEVICES"] = ordinals[w] if gpus else ""
-        spec[f"mdroll-{w}"] = {"cls": Nanny, "options": {"nthreads": 1, "env": env, "memory_limit": 0,
-                                                          "host": LOOPBACK, "dashboard": False,
-                                                          "silence_logs": level}}
-    scheduler = {"cls": Scheduler, "options": {"host": LOOPBACK, "dashboard": False,
-                                                   "dashboard_address": f"{LOOPBACK}:0"}}
-    cluster = SpecCluster(workers=spec, scheduler=scheduler, silence_logs=level)
-    return Client(cluster, direct_to_workers=True)
-
-
-@contextlib.contextmanager
-def connect(workers: int | None = None, scheduler: str | None = None, device: str = "auto", verbose: bool = False):
-    """A client for the duration of a ``with`` block: a :func:`local_cluster` of ``workers``
-    processes (closed at the end), or the existing cluster at ``scheduler`` (an address such as
-    ``tcp://host:8786``; left running)."""
-    from distributed import Client
-
-    if (workers is None) == (scheduler is None):
-        raise ParameterError("give either workers (a local cluster) or scheduler (an existing cluster), not both")
-    if scheduler is not None:
-        # the client's own reports (a lost scheduler's reconnection attempts, with tracebacks)
-        # only when verbose: a lost scheduler ends in one SchedulerLost line
-        quiet = logging.getLogger("distributed")
-        before = quiet.level
-        quiet.setLevel(logging.INFO if verbose else logging.CRITICAL)
-        try:
-            try:
-                client = Client(scheduler, timeout="10s")
-            except OSError as exc:
-                raise ParameterError(f"scheduler = {scheduler!r}: cannot connect ({exc})") from None
-            except (ValueError, TypeError):  # Dask's parse of the address
-                raise ParameterError(f"scheduler = {scheduler!r} is not an address: give one such as "
-                                     "tcp://host:8786") from None
-            with client:
-                yield client
-        finally:
-            quiet.setLevel(before)
-        return
-    client = local_cluster(workers, device, verbose)
-    try:
-        yield client
-    finally:
-        client.close()
-        client.cluster.close()
-
-
 def saved_specs(checkpoint) -> list[EnsembleSpec]:
     """The specs of the distributed run whose units are in the directory ``checkpoint``."""
     manifest = Path(checkpoint) / MANIFEST
     if not manifest.is_file():
         raise ParameterError(f"{checkpoint}: no {MANIFEST} of a distributed run there to continue from")
     return [EnsembleSpec.from_dict(d) for d in json.loads(manifest.read_text())["specs"]]
-
-
-def gpu_count() -> int:
-    """GPUs visible to this process, without creating a CUDA context in it (workers must start
-    theirs after being pinned): from ``CUDA_VISIBLE_DEVICES`` or the NVIDIA driver's device
-    nodes."""
-    visible = os.environ.get("CUDA_VISIBLE_DEVICES")
-    if visible is not None:
-        return len([v for v in visible.split(",") if v.strip() not in ("", "-1")])
-    return len([p for p in Path("/dev").glob("nvidia[0-9]*")])
