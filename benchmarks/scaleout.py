@@ -96,7 +96,7 @@ def in_process(device: str, small: bool, repeat: int) -> dict:
         out["runs"][name] = {"wall_s": seconds[median_run(seconds)], "runs_s": seconds, "spec": spec.as_dict(),
                              "spectra": {f: getattr(result, f) for f in FIELDS}}
         rates.setdefault(spec.mode, spec.realizations / out["runs"][name]["wall_s"])
-        print(f"{name}: in process {out['runs'][name]['wall_s']:.3f} s", flush=True)
+        print(f"{name}: in process {out['runs'][name]['wall_s']:.3f} s ({' '.join(f'{t:.3f}' for t in seconds)})", flush=True)
     return out
 
 
@@ -120,6 +120,8 @@ def phases(tasks: list, called: float, returned: float) -> dict:
             entry[f"{s['action']}_s"] = entry.get(f"{s['action']}_s", 0.0) + s["stop"] - s["start"]
     units = [s for t in tasks if str(t["key"]).startswith("mdroll-unit") for s in t["startstops"]
              if s["action"] == "compute"]
+    if not units:  # the task stream missed them: the kinds alone
+        return {"tasks": kinds}
     first, last = min(s["start"] for s in units), max(s["stop"] for s in units)
     ends = sorted(s["stop"] for s in units)
     return {"to_first_unit_s": first - called, "units_span_s": last - first, "after_units_s": returned - last,
@@ -154,6 +156,7 @@ def main() -> None:
               "workers": args.workers, "repeat": args.repeat, "workloads": {}}
     for name, run in local["runs"].items():
         record["workloads"][name] = {"spec": run["spec"], "in_process_s": run["wall_s"], "in_process_runs_s": run["runs_s"]}
+    write(args.out, record)
     for workers in sorted({1, args.workers}):
         t0 = time.perf_counter()
         with connect(workers=workers, device=args.device) as client:
@@ -182,6 +185,7 @@ def main() -> None:
                       f"({' '.join(f'{t:.3f}' for t in seconds)}), largest relative difference "
                       f"{entry[f'workers_{workers}_max_rel_difference']:.1e}; "
                       + ", ".join(f"{k} {v:.3f}" for k, v in found[middle].items() if k != "tasks"), flush=True)
+                write(args.out, record)  # what is measured so far, should a later step fail
     for entry in record["workloads"].values():
         many = entry[f"workers_{args.workers}_s"]
         entry["max_rel_difference"] = max(entry[f"workers_{w}_max_rel_difference"] for w in {1, args.workers})
@@ -189,7 +193,11 @@ def main() -> None:
         entry["one_worker_over_in_process"] = entry["workers_1_s"] / entry["in_process_s"]
         print(f"{entry['spec']['realizations']} x {entry['spec']['mode']}: {args.workers} workers "
               f"{entry['speedup']:.2f}x in process; 1 worker {entry['one_worker_over_in_process']:.3f} of it")
-    with open(args.out, "w") as f:
+    write(args.out, record)
+
+
+def write(path: str, record: dict) -> None:
+    with open(path, "w") as f:
         json.dump(record, f, indent=1)
 
 
