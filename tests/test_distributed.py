@@ -110,6 +110,19 @@ def test_parts_merge_to_the_sample_moments_and_travel_as_one_array(tmp_path):
         run_unit(spec, "cpu", {}, str(tmp_path / "elsewhere"))
 
 
+def test_local_cluster_gathers_directly_from_quiet_workers():
+    import dask
+
+    client = local_cluster(1, device="cpu")
+    try:
+        assert client.direct_to_workers is True  # the parts come from the workers, not via the scheduler
+        assert list(client.run(lambda: dask.config.get("distributed.worker.profile.enabled")).values()) == [False]
+        assert list(client.run(lambda: os.environ["OMP_NUM_THREADS"]).values()) == ["1"]
+    finally:
+        client.close()
+        client.cluster.close()
+
+
 def scale(cluster, workers):
     cluster, client = cluster
     cluster.scale(workers)

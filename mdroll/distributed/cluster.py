@@ -16,6 +16,10 @@ from ..errors import ParameterError
 
 #: A local cluster listens on the loopback interface only: it serves no one outside this machine.
 LOOPBACK = "127.0.0.1"
+#: Dask settings of a local cluster's workers: no statistical profiler, whose thread would take
+#: the interpreter every few milliseconds from the unit's thread, which launches the device's work
+#: (it feeds the dashboard, which a local cluster does not start).
+QUIET_WORKER = {"distributed.worker.profile.enabled": False}
 
 
 def local_cluster(workers: int, device: str = "auto", verbose: bool = False):
@@ -26,8 +30,9 @@ def local_cluster(workers: int, device: str = "auto", verbose: bool = False):
     GPUs, each pinned to its GPU by ``CUDA_VISIBLE_DEVICES`` before Warp starts in it (so each
     worker's ``cuda:0`` is its own GPU). ``dask-cuda``'s ``LocalCUDACluster`` does the same; this
     spec needs only ``distributed``. The client takes the units' parts from the workers directly,
-    not through the scheduler (one hop, not two: the workers are on this machine). Dask's logs
-    below warnings are shown only when ``verbose``.
+    not through the scheduler (one hop, not two: the workers are on this machine), and the workers
+    run without Dask's profiler (:data:`QUIET_WORKER`). Dask's logs below warnings are shown only
+    when ``verbose``.
     """
     from distributed import Client, Nanny, Scheduler, SpecCluster
 
@@ -50,7 +55,7 @@ def local_cluster(workers: int, device: str = "auto", verbose: bool = False):
         env["CUDA_VISIBLE_DEVICES"] = ordinals[w] if gpus else ""
         spec[f"mdroll-{w}"] = {"cls": Nanny, "options": {"nthreads": 1, "env": env, "memory_limit": 0,
                                                           "host": LOOPBACK, "dashboard": False,
-                                                          "silence_logs": level}}
+                                                          "silence_logs": level, "config": QUIET_WORKER}}
     scheduler = {"cls": Scheduler, "options": {"host": LOOPBACK, "dashboard": False,
                                                    "dashboard_address": f"{LOOPBACK}:0"}}
     cluster = SpecCluster(workers=spec, scheduler=scheduler, silence_logs=level)
