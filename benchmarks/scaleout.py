@@ -11,8 +11,9 @@ about one and five seconds in process (from that mode's first workload's rate, t
 by their own time in process). The in-process run goes in a
 spawned child that exits before any cluster starts, so that no GPU memory of this process
 shrinks a worker's batches. In process and on each cluster alike, every workload is timed
-``--repeat`` times after the same small warm-up of its kernels, and its time is the median (all
-are recorded; the clusters' start-up and warm-up beside). ``--small`` runs the same at a size
+``--repeat`` times after the same small warm-up of its kernels (and, for the workloads sized in
+seconds, one untimed run at their size: the in-process one that rescales them), and its time is
+the median (all are recorded; the clusters' start-up and warm-up beside). ``--small`` runs the same at a size
 for the CPU (``--device cpu``: worker processes of one core each). Each cluster run also records
 where its time went, on the host's clock: from the call to the first unit's start, the units'
 span, from the last unit's end to the result (the transfers of the parts and their merge), and
@@ -183,6 +184,8 @@ def main() -> None:
                 spec = EnsembleSpec.from_dict(run["spec"])
                 entry = record["workloads"][name]
                 warm = warm_up(spec, lambda s: DaskRunner(client, unit_size=1).run_specs([s], device=args.device))
+                if isinstance(next(a for n, _, a in WORKLOADS if n == name), float):
+                    runner.run_specs([spec], device=args.device)  # untimed, as the in-process calibration run
                 seconds, found = [], []
                 for _ in range(args.repeat):
                     with distributed.get_task_stream(client) as stream:
