@@ -21,7 +21,8 @@ from distributed import Client, LocalCluster  # noqa: E402
 
 from mdroll import EnsembleSpec, Params, run_specs  # noqa: E402
 from mdroll.errors import ParameterError  # noqa: E402
-from mdroll.distributed import DaskRunner, default_unit_size, local_cluster, work_units  # noqa: E402
+from mdroll.distributed import (DaskRunner, default_unit_size, local_cluster, merge_parts, part_of,  # noqa: E402
+                                result_of, run_unit, work_units)
 
 FIELDS = ("force_psd", "force_psd_stderr", "accel_psd", "accel_psd_stderr")
 #: The merge of per-worker partial means and variances in another order than one process's
@@ -85,6 +86,43 @@ def test_units_are_whole_batches_and_cover_each_realization_once():
         local_cluster(len(os.sched_getaffinity(0)) + 1, device="cpu")
 
 
+def test_parts_merge_to_the_sample_moments_and_travel_as_one_array(tmp_path):
+    from distributed.protocol import serialize
+
+    spec = EnsembleSpec(Params(L=0.1), seed=7, first=3, realizations=5)
+    parts = [part_of(unit.run(device="cpu"), unit.first) for unit in spec.split(2)]
+    merged = result_of(merge_parts(*parts[::-1]))
+    assert merged.realizations == [3, 4, 5, 6, 7] and merged.n_real == 5
+    assert_same([merged], [spec.run(device="cpu")])
+    # against numpy's mean and standard error over the realizations' own spectra
+    singles = [unit.run(device="cpu") for unit in spec.split(1)]
+    for name in ("force_psd", "accel_psd"):
+        rows = np.stack([getattr(r, name) for r in singles])
+        for got, want in ((getattr(merged, name), rows.mean(axis=0)),
+                          (getattr(merged, name + "_stderr"), rows.std(axis=0, ddof=1) / np.sqrt(5))):
+            assert np.max(np.abs(got - want)) <= RELATIVE * np.max(want), name
+    with pytest.raises(ParameterError, match="share realization 3"):
+        merge_parts(parts[0], parts[0])
+    # the spectra go as one frame of their bytes; the rest (settings, spans) is small whatever the count
+    frames = [memoryview(f).nbytes for f in serialize(merge_parts(*parts))[1]]
+    assert frames.count(4 * merged.q.size * 8) == 1 and sum(frames) - 4 * merged.q.size * 8 < 4096, frames
+    with pytest.raises(ParameterError, match="not visible to every worker"):
+        run_unit(spec, "cpu", {}, str(tmp_path / "elsewhere"))
+
+
+def test_local_cluster_gathers_directly_from_quiet_workers():
+    import dask
+
+    client = local_cluster(1, device="cpu")
+    try:
+        assert client.direct_to_workers is True  # the parts come from the workers, not via the scheduler
+        assert list(client.run(lambda: dask.config.get("distributed.worker.profile.enabled")).values()) == [False]
+        assert list(client.run(lambda: os.environ["OMP_NUM_THREADS"]).values()) == ["1"]
+    finally:
+        client.close()
+        client.cluster.close()
+
+
 def scale(cluster, workers):
     cluster, client = cluster
     cluster.scale(workers)
@@ -101,9 +139,12 @@ def test_any_number_of_workers_equals_one_process(cluster, reference, workers):
         assert_same(run_specs(specs(), device="cpu", runner=DaskRunner(client, unit_size=unit_size)), reference)
 
 
-def test_killed_worker_loses_and_doubles_nothing(cluster, reference):
+@pytest.mark.parametrize("unit_size", [1, None])
+def test_killed_worker_loses_and_doubles_nothing(cluster, reference, unit_size):
+    """Units merged on the workers (several a spec) and parts taken by the client as their units
+    end (one a worker)."""
     _, client = cluster
-    runner = DaskRunner(client, unit_size=1)
+    runner = DaskRunner(client, unit_size=unit_size)
     pids = client.run(os.getpid)  # worker address -> process id
     killed = []
 
@@ -145,6 +186,9 @@ def test_checkpoint_resumes_only_missing_units(cluster, reference, tmp_path):
     other = [EnsembleSpec(Params(L=0.1), seed=8, realizations=2)]
     with pytest.raises(ParameterError, match="another distributed run"):
         runner.run_specs(other, device="cpu")
+    (tmp_path / "unit-0-3-2.npz").write_bytes((tmp_path / "unit-0-5-2.npz").read_bytes())
+    with pytest.raises(ParameterError, match="does not hold the realizations 3 to 4"):
+        runner.run_specs(specs(), device="cpu")
 
 
 def test_cli_workers_equal_one_process_and_resume_keeps_the_run(cluster, tmp_path, capfd):
