@@ -47,6 +47,7 @@ import numpy as np
 from scipy import special
 
 from ..errors import ParameterError
+from .rolling import check_rolling
 from .solver import array_module, to_host
 
 
@@ -133,21 +134,12 @@ def roll(surface, dx: float, bed: Bed, *, steps: int, window: int | None = None,
     -------
     BedRolling
     """
-    shape = tuple(getattr(surface, "shape", ()))
-    if len(shape) not in (2, 3):
-        raise ParameterError(f"surface must be (Lx, Ly) or (B, Lx, Ly), got shape {shape}")
+    shape, n = check_rolling(surface, steps, window, start, smallest_window=1)
     if not isinstance(bed, Bed):
         raise ParameterError(f"bed must be a mdroll.bem.dprs.Bed, got {type(bed).__name__}")
     if isinstance(dx, bool) or not isinstance(dx, (int, float)) or not math.isfinite(dx) or dx <= 0:
         raise ParameterError(f"dx must be a finite number > 0, got {dx!r}")
     length, width = shape[-2:]
-    n = width if window is None else window
-    for name, value, low in (("steps", steps, 1), ("window", n, 1), ("start", start, 0)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-            raise ParameterError(f"{name} must be an integer >= {low}, got {value!r}")
-    if n > width or start + steps - 1 + n > length:
-        raise ParameterError(f"{steps} positions of a {n}-cell window from row {start} need a surface of at least "
-                             f"{start + steps - 1 + n} x {n} cells, got {length} x {width}")
     first = (width - n) // 2
     xp, context = array_module(device)
     with context:

@@ -75,6 +75,24 @@ def _roll_steps(op, full, gap, start, columns, steps, control, load_control, tol
     return fields, to_host(pressure)
 
 
+def check_rolling(surface, steps, window, start, smallest_window: int) -> tuple[tuple, int]:
+    """``(surface's shape, the window's cells n)`` of a rolling run: ``surface`` (Lx, Ly) or
+    (B, Lx, Ly); ``steps`` >= 1, ``window`` (default Ly) >= ``smallest_window`` and ``start`` >= 0
+    integers with ``n <= Ly`` and ``start + steps - 1 + n <= Lx``; else ParameterError naming them."""
+    shape = tuple(getattr(surface, "shape", ()))
+    if len(shape) not in (2, 3):
+        raise ParameterError(f"surface must be (Lx, Ly) or (B, Lx, Ly), got shape {shape}")
+    length, width = shape[-2:]
+    n = width if window is None else window
+    for name, value, low in (("steps", steps, 1), ("window", n, smallest_window), ("start", start, 0)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+            raise ParameterError(f"{name} must be an integer >= {low}, got {value!r}")
+    if n > width or start + steps - 1 + n > length:
+        raise ParameterError(f"{steps} positions of a {n}-cell window from row {start} need a surface of at least "
+                             f"{start + steps - 1 + n} x {n} cells, got {length} x {width}")
+    return shape, n
+
+
 def roll(surface, dx, radius, *, E_star, steps, approach=None, load=None, window=None, start=0, radius_y=None,
          device="cpu", tol=TOLERANCE, max_iter=MAX_ITERATIONS):
     """Roll the indenter along axis 0 of ``surface`` for ``steps`` positions, one cell apart.
@@ -97,17 +115,8 @@ def roll(surface, dx, radius, *, E_star, steps, approach=None, load=None, window
     -------
     Rolling
     """
-    shape = tuple(getattr(surface, "shape", ()))
-    if len(shape) not in (2, 3):
-        raise ParameterError(f"surface must be (Lx, Ly) or (B, Lx, Ly), got shape {shape}")
+    shape, n = check_rolling(surface, steps, window, start, smallest_window=2)
     length, width = shape[-2:]
-    n = width if window is None else window
-    for name, value, low in (("steps", steps, 1), ("window", n, 2), ("start", start, 0)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-            raise ParameterError(f"{name} must be an integer >= {low}, got {value!r}")
-    if n > width or start + steps - 1 + n > length:
-        raise ParameterError(f"{steps} positions of a {n}-cell window from row {start} need a surface of at least "
-                             f"{start + steps - 1 + n} x {n} cells, got {length} x {width}")
     columns = slice((width - n) // 2, (width - n) // 2 + n)
     batched = len(shape) == 3
     _, n, dx, radius, radius_y, E_star, control, load_control = check_problem(
