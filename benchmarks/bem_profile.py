@@ -8,35 +8,18 @@ environment and the commit; docs/bem.md reads it.
 
 import argparse
 import json
-import statistics
-import time
 
 import numpy as np
 
-from bem_speed import E_STAR, RADIUS, commit, problem
+from bem_speed import E_STAR, RADIUS, commit, graph_seconds, median_seconds, problem
 from mdroll.bem import solve
 from mdroll.bem.halfspace import HalfSpace
 from mdroll.bem.solver import device_gap, initial_pressure, workspace
 from mdroll.provenance import environment
 
-REPEATS = 20
-
-
 def graph_microseconds(stream, body):
-    """Microseconds of one ``body()``, captured :data:`REPEATS` times in a graph, after one replay."""
-    import cupy
-
-    stream.begin_capture()
-    for _ in range(REPEATS):
-        body()
-    graph = stream.end_capture()
-    start, end = cupy.cuda.Event(), cupy.cuda.Event()
-    graph.launch(stream)
-    start.record(stream)
-    graph.launch(stream)
-    end.record(stream)
-    end.synchronize()
-    return cupy.cuda.get_elapsed_time(start, end) * 1e3 / REPEATS
+    """Microseconds of one ``body()`` (:func:`bem_speed.graph_seconds`)."""
+    return graph_seconds(stream, body) * 1e6
 
 
 def kernels(n, batch):
@@ -94,15 +77,10 @@ def lone_solve(n, device):
     heights = surfaces[0]
 
     def median_ms(call, repeats=7):
-        call()
-        times = []
-        for _ in range(repeats):
-            cupy.cuda.Device().synchronize()
-            start = time.perf_counter()
+        def synced():  # the calls leave their results on the device: wait for its work
             call()
             cupy.cuda.Device().synchronize()
-            times.append(time.perf_counter() - start)
-        return statistics.median(times) * 1e3
+        return median_seconds(synced, repeats)[0] * 1e3
 
     control = np.array([d0])
     result = solve(heights, dx, RADIUS, E_star=E_STAR, approach=d0, device=device)

@@ -120,7 +120,7 @@ def contactmechanics_solve(heights, dx, d0, force):
     return {"seconds": seconds, "iterations": int(result.nit), "force": theirs, "force_ratio": force / theirs}
 
 
-def _graph_seconds(stream, body, repeats=20):
+def graph_seconds(stream, body, repeats=20):
     """Seconds of one ``body()``: captured ``repeats`` times in a CUDA graph, the graph's replay
     timed by events after one untimed replay."""
     import cupy
@@ -158,10 +158,10 @@ def floor(args):
             state = np.zeros((batch, fused.FIELDS))
             state[:, fused.ACTIVE], state[:, fused.MAX_ITER], state[:, fused.G_OLD] = 1.0, 1e18, 1.0
             solver.state.set(state)
-            convolution = _graph_seconds(solver.stream, lambda: solver.convolve(solver.p, solver.u))
-            iteration = _graph_seconds(solver.stream, solver._iteration)
+            convolution = graph_seconds(solver.stream, lambda: solver.convolve(solver.p, solver.u))
+            iteration = graph_seconds(solver.stream, solver._iteration)
             solver.state[:, fused.ACTIVE] = 0.0
-            launch = _graph_seconds(solver.stream, lambda: solver.kernels["direction"](
+            launch = graph_seconds(solver.stream, lambda: solver.kernels["direction"](
                 (solver.chunks, batch), (256,), (solver.u, solver.p, solver.separation, solver.t, solver.state,
                                                  np.int32(n))), 100)
         out[f"batch_{batch}"] = {"convolution_seconds_per_surface": convolution / batch,
