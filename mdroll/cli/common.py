@@ -235,10 +235,10 @@ def rigid_wheel_mass(args, params: Params, wheel):
     if wheel is None or wheel.kind != "rigid":
         return params, wheel
     path = getattr(args, "config", None)
-    given = [key for key, _ in (config_structures(path)["wheel"] if path else []) + _settings(args)]
-    if "wheel.mass" not in given:
+    set_keys = [key for key, _ in _settings(args)]
+    if "wheel.mass" not in set_keys + [key for key, _ in (config_structures(path)["wheel"] if path else [])]:
         return params, wheel.with_values(mass=params.m)
-    m_given = "m" in [key for key, _ in _settings(args)] or bool(path and "m" in load_config(path))
+    m_given = "m" in set_keys or bool(path and "m" in load_config(path))
     if m_given and params.m != wheel.mass:
         raise ParameterError(f"wheel.mass = {wheel.mass:g} kg is not allowed with m = {params.m:g} kg: the rigid "
                              "wheel's mass is the run's m; give one of them")

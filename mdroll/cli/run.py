@@ -25,8 +25,8 @@ from ..ensemble.validity import parameter_concerns, result_concerns
 from ..errors import SchedulerLost, UsageError
 from ..files import atomic_write, remove_stale_temporaries
 from ..railway.report import write_band_outputs
-from .common import (build_params, build_structures, rigid_wheel_mass, check_output, cluster_options, cluster_runner, device_option,
-                     format_value, lock, output_dir, output_options, param_options)
+from .common import (build_params, build_structures, check_output, cluster_options, cluster_runner, device_option,
+                     format_value, lock, output_dir, output_options, param_options, rigid_wheel_mass)
 
 #: What ``run`` and ``merge`` write; ``--force`` removes the old ones first, so that a finished
 #: run's files never mix with a new run's.

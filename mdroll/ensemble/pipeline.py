@@ -156,8 +156,9 @@ def run_ensemble(
         standing above a sleeper) and a modal wheel's modes
         (:func:`mdroll.ensemble.coupled.contact_compliance`); the roughness moves under a
         stationary wheel. A track with ``parametric = True`` adds the moving load's equivalent
-        roughness (:func:`mdroll.ensemble.lines.parametric_line`) to every line. The result records them; the wheel and rail vibration spectra follow
-        from the force's (:meth:`EnsembleResult.vibration`, :mod:`mdroll.ensemble.vibration`).
+        roughness (:func:`mdroll.ensemble.lines.parametric_line`) to every line. The result
+        records them; the wheel and rail vibration spectra follow from the force's
+        (:meth:`EnsembleResult.vibration`, :mod:`mdroll.ensemble.vibration`).
 
     Returns
     -------
@@ -204,8 +205,8 @@ def run_ensemble(
         key["integrator"] = integrator
     if compliance[0] is not None:
         key["track"], key["wheel"] = (dataclasses.asdict(x) if x else None for x in (track, wheel))
-        if key["track"] and not key["track"]["parametric"]:  # the key of a plain track is the one written before the option existed
-            del key["track"]["parametric"]
+        if key["track"] and not key["track"]["parametric"]:
+            del key["track"]["parametric"]  # a plain track's key: the one written before the flag existed
     if roughness is None and params.roughness != "powerlaw":
         roughness = from_params(params)  # read (a table file) once, not per batch
     if roughness is not None:
@@ -235,8 +236,8 @@ def run_ensemble(
     def series_moments(idx, clock, serial=contextlib.nullcontext()):
         """Lines -> force (and response) -> sums and PSD moments of the realizations ``idx``;
         the coupled response inside ``serial``."""
-        lines = clock("generate", lambda: add_line(to_warp(rough_lines(params, seed, idx, device=device,
-                                                                       roughness=roughness), device), excitation, device))
+        lines = clock("generate", lambda: add_line(
+            to_warp(rough_lines(params, seed, idx, device=device, roughness=roughness), device), excitation, device))
         prepared = clock("build", lambda: prepare_lines(lines, params, algorithm, boundary, d0, device, leaf_size, h_bound))
         if decoupled:
             out = buffers.empty("force", (len(idx), prepared.steps), warp().float64, device)

@@ -57,12 +57,17 @@ def structures_record(track: Track | None, wheel: Wheel | None) -> tuple[dict, d
                                                                          wheel or Wheel.preset("rigid")))
 
 
+def rigid_wheel(params: Params) -> Wheel:
+    """The rigid wheel of a run: its mass is the run's m (eq 13)."""
+    return Wheel.preset("rigid").with_values(mass=params.m)
+
+
 def structures_of(result) -> tuple[Track, Wheel]:
     """The :class:`Track` and :class:`Wheel` a result records (the rigid ones where it records none,
     the rigid wheel of the run's mass m)."""
     track = Track(**result.track) if result.track else Track.preset("rigid")
     if not result.wheel:
-        return track, Wheel.preset("rigid").with_values(mass=result.params.m)
+        return track, rigid_wheel(result.params)
     wheel = dict(result.wheel)
     wheel["modes"] = tuple(tuple(mode) for mode in wheel.get("modes", ()))
     return track, Wheel(**wheel)
@@ -104,8 +109,7 @@ def with_structures(result, track: Track | None, wheel: Wheel | None):
     rigid = (track is None or track.support == "rigid") and (wheel is None or wheel.kind == "rigid")
     if rigid:
         return result
-    wheel_or_mass = wheel or Wheel.preset("rigid").with_values(mass=result.params.m)
-    result.track, result.wheel = structures_record(track, wheel_or_mass)
+    result.track, result.wheel = structures_record(track, wheel or rigid_wheel(result.params))
     if wheel is not None and wheel.kind != "rigid":
         gain = np.abs(result.omega**2 * transfers(*structures_of(result), result.params,
                                                    result.omega / TWO_PI)["wheel"]) ** 2
