@@ -43,12 +43,13 @@ w the deflection under F0 (:func:`moving_bay_roughness`).
 
 **The rule of a run: always the exact line**, at the run's speed (``speed`` of
 :func:`equivalent_roughness`, :func:`harmonics`, :func:`roughness_levels`; None gives the
-quasi-static line). It is a wavenumber integral of closed forms, made once a (track, speed), so
-switching to the quasi-static line below :func:`quasi_static_frequency` would save nothing worth
-its cost, and one rule keeps (1) one model of the track: the line follows the same support
-stiffness, damping included, as the receptances the run steps, where the quasi-static line takes
-the elastic static stiffness, which the damping models need not tend to at zero frequency; (2) no
-jump in a run's results at a switching speed (the losses alone change the slow load's line).
+quasi-static line). It is a wavenumber integral of closed forms, made once a (track, speed) and
+cheap beside a run (docs/track.md gives its cost), so a switch to the quasi-static line below
+:func:`quasi_static_frequency` would save little, and one rule keeps (1) one model of the track:
+the line follows the same support stiffness, damping included, as the receptances the run steps,
+where the quasi-static line takes the elastic static stiffness, which the damping models need not
+tend to at zero frequency; (2) no jump in a run's results at a switching speed (the losses alone
+change the slow load's line).
 The exact line holds the first :data:`MOVING_HARMONICS` harmonics and leaves out the rest: the
 harmonics fall as 1/n^2 (the kink of the deflection above a support), and wavelengths below d / 64
 lie at or beyond the first zero of the contact filter of a thesis-sized contact (2a = 10 mm).
