@@ -201,18 +201,21 @@ def test_a_run_shows_the_sleeper_passing_peaks_of_the_linear_chain(device, monke
     rail = _rail_as_one_mode(track)
     stepped = []
     monkeypatch.setattr(pipeline, "contact_compliance", lambda structure, wheel: stepped.append(structure) or (rail, True))
-    params = Params(L=6.0, dx=1e-4, v0=speed, h0=1e-9)
+    params = Params(L=10 * track.sleeper_spacing, dx=1e-4, v0=speed, h0=1e-9)  # n v / d on bin 10 n
     result = run_ensemble(params, seed=3, realizations=2, mode="coupled", track=track, device=device, progress=False)
     assert stepped == [track.structure()] and result.track["parametric"] is True
     assert result.contact_lost_steps == 0
     dq = result.q[1] - result.q[0]
     q1 = TWO_PI / track.sleeper_spacing
     k = int(round(q1 / dq))
-    assert np.argmax(result.force_psd[1:4 * k]) + 1 in (k - 1, k, k + 1)  # the force's peak below 4 v / d
+    assert k == 10
+    below = result.force_psd[1:4 * k + 3]  # bins 1 .. 4 k + 2
+    lobes = sum(below[n * k - 3:n * k + 2].sum() for n in (1, 2, 3, 4))  # the Hann window's main lobes
+    assert lobes > 0.99 * below.sum()  # the force up to 4 v / d is the lines at n v / d
     # F = sinc(q a) r_n / (alpha_W + alpha_R + alpha_C) at f = n v / d, alpha_R the rail the run
     # steps, r_n the exact line's harmonic at the run's speed
     exact = harmonics(track, params.F_N, 2, speed=speed)[1]
-    assert np.all(np.abs(20 * np.log10(exact / harmonics(track, params.F_N, 2)[1])) > 0.5)  # not the quasi-static
+    assert np.all(np.abs(20 * np.log10(exact / harmonics(track, params.F_N, 2)[1])) > 0.2)  # not the quasi-static
     for n in (1, 2):
         f = n * params.v0 / track.sleeper_spacing
         alpha = (-1 / (params.m * (TWO_PI * f) ** 2) + 1 / params.k_contact

@@ -21,11 +21,11 @@ from .beam import support_stiffness
 from .periodic import free_waves, lattice_sum
 
 #: :func:`moving_harmonics`' quadrature: Gauss-Legendre nodes an interval, zones beyond the last
-#: harmonic's, bisections at most, intervals still open at most (per zone), its relative tolerance,
+#: harmonic's, rounds of bisection at most, intervals at most (per zone), its relative tolerance,
 #: the floor of its error scale (of the largest harmonic) and the wavenumbers evaluated at once.
 MOVING_NODES = 8
 MOVING_TAIL_ZONES = 60
-MOVING_DEPTH = 30
+MOVING_DEPTH = 60
 MOVING_OPEN = 32
 MOVING_RTOL = 1e-5
 MOVING_FLOOR = 1e-9
@@ -60,14 +60,12 @@ def moving_harmonics(track, speed: float, count: int, rtol: float = MOVING_RTOL)
 
         c_n = (1 / 2 pi) integral_0^inf dk [U_{-n}(k) + conj(U_n(k))]
 
-    (k < 0, negative frequencies, gives the complex conjugate). Quadrature: Gauss-Legendre
-    (:data:`MOVING_NODES` nodes) on the zones ``[j, j + 1] 2 pi / d``, j below ``count +``
-    :data:`MOVING_TAIL_ZONES` (U_{-n} peaks in zone n; beyond, the integrand falls as k^-4), each
-    bisected until its halves change it by at most ``rtol`` (times the zone's share of the range)
-    of every harmonic's magnitude (harmonics below :data:`MOVING_FLOOR` of the largest held to
-    that floor): :func:`_adaptive_integral`. A track with too little loss for its resonances
-    under the moving load (an undamped one) has no steady state the rule reaches: a
-    ParameterError naming its loss factors."""
+    (k < 0, negative frequencies, gives the complex conjugate). Quadrature: adaptive
+    Gauss-Legendre (:func:`_adaptive_integral`, relative tolerance ``rtol`` on every harmonic)
+    from the zones ``[j, j + 1] 2 pi / d``, j below ``count +`` :data:`MOVING_TAIL_ZONES`
+    (U_{-n} peaks in zone n; beyond, the integrand falls as k^-4). A track with too little loss
+    for its resonances under the moving load (an undamped one) has no steady state the rule
+    reaches: a ParameterError naming its loss factors."""
     check_discrete(track)
     if not speed > 0:
         raise ParameterError(f"speed = {speed!r} m/s is not allowed: the moving load needs a positive speed")
@@ -100,35 +98,45 @@ def free_receptance(q, waves) -> np.ndarray:
     return np.sum(2j * c * k / (k**2 - q[..., None] ** 2), axis=-1)
 
 
-def _adaptive_integral(f, edges, rtol) -> np.ndarray:
-    """``integral f(k) dk`` over ``[edges[0], edges[-1]]`` of ``f`` (nodes (N,) -> values (N, H)):
-    Gauss-Legendre on each interval, bisected while its halves differ from it by more than
-    ``rtol`` times the interval's share of the range of every component's magnitude (held to
-    :data:`MOVING_FLOOR` of the largest), at most :data:`MOVING_DEPTH` times and with at most
-    :data:`MOVING_OPEN` intervals a starting one still open; None where it does not converge so."""
+def _adaptive_integral(f, edges, rtol):
+    """``integral f(k) dk`` over ``[edges[0], edges[-1]]`` of ``f`` (nodes (N,) -> values (N, H)),
+    or None where it does not converge: Gauss-Legendre on each interval and on its two halves,
+    whose difference is the interval's error, relative to every component's magnitude (held to
+    :data:`MOVING_FLOOR` of the largest). While the errors add up to more than ``rtol``, every
+    interval whose error exceeds an equal share of ``rtol`` is replaced by its halves (whose rules
+    are known), so that an interval at a singular end point, whose error falls with its length,
+    converges too: at most :data:`MOVING_DEPTH` rounds and :data:`MOVING_OPEN` intervals a
+    starting one."""
     x, w = np.polynomial.legendre.leggauss(MOVING_NODES)
 
-    def rule(a, b):
-        nodes = (0.5 * (a + b))[:, None] + (0.5 * (b - a))[:, None] * x
+    def rule(lo, hi):
+        nodes = (0.5 * (lo + hi))[:, None] + (0.5 * (hi - lo))[:, None] * x
         values = np.concatenate([f(block) for block in np.array_split(nodes.ravel(), -(-nodes.size // BLOCK))])
-        return (0.5 * (b - a))[:, None] * np.einsum("ipk,p->ik", values.reshape(a.size, x.size, -1), w)
+        return (0.5 * (hi - lo))[:, None] * np.einsum("ipk,p->ik", values.reshape(lo.size, x.size, -1), w)
+
+    def bisect(a, b, whole):
+        """The intervals' midpoints, the rule on their halves and their errors."""
+        middle = 0.5 * (a + b)
+        parts = rule(np.concatenate([a, middle]), np.concatenate([middle, b]))
+        left, right = parts[:a.size], parts[a.size:]
+        return middle, left, right, np.abs(left + right - whole)
 
     a, b = edges[:-1], edges[1:]
-    span = b[-1] - a[0]
-    whole = rule(a, b)
-    total = 0.0
+    middle, left, right, error = bisect(a, b, rule(a, b))
     for _ in range(MOVING_DEPTH):
-        if a.size > MOVING_OPEN * (edges.size - 1):
-            return None
-        middle = 0.5 * (a + b)
-        halves = rule(np.concatenate([a, middle]), np.concatenate([middle, b]))
-        left, right = halves[:a.size], halves[a.size:]
-        scale = np.abs(total + np.sum(left + right, axis=0))
+        value = left + right
+        scale = np.abs(np.sum(value, axis=0))
         scale = np.maximum(scale, MOVING_FLOOR * scale.max())
-        done = np.all(np.abs(left + right - whole) <= rtol * ((b - a) / span)[:, None] * scale, axis=1)
-        total = total + np.sum((left + right)[done], axis=0)
-        if done.all():
-            return total
-        a, b = np.concatenate([a[~done], middle[~done]]), np.concatenate([middle[~done], b[~done]])
-        whole = np.concatenate([left[~done], right[~done]])
+        relative = np.max(error / scale, axis=1)
+        if relative.sum() <= rtol:
+            return np.sum(value, axis=0)
+        refine = relative > rtol / a.size
+        if a.size + np.count_nonzero(refine) > MOVING_OPEN * (edges.size - 1):
+            return None
+        halves = (np.concatenate([a[refine], middle[refine]]), np.concatenate([middle[refine], b[refine]]))
+        new = bisect(*halves, np.concatenate([left[refine], right[refine]]))
+        keep = ~refine
+        a, b = (np.concatenate([old[keep], part]) for old, part in zip((a, b), halves))
+        middle, left, right, error = (np.concatenate([old[keep], part]) for old, part in
+                                      zip((middle, left, right, error), new))
     return None

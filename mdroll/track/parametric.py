@@ -183,10 +183,11 @@ def bay_roughness(track, load: float, speed=None) -> np.ndarray:
 def moving_bay_roughness(track, speed: float) -> np.ndarray:
     """The exact moving load's equivalent roughness per newton (m/N) on the positions of
     :func:`bay_roughness`: ``-(w - <w>)``, w the deflection of the first :data:`MOVING_HARMONICS`
-    harmonics of :func:`moving_harmonics`, computed once a (track, speed) and kept (read-only)."""
-    spectrum = np.zeros(BAY_POINTS // 2 + 1, dtype=complex)
-    spectrum[1:MOVING_HARMONICS + 1] = moving_harmonics(track, speed, MOVING_HARMONICS)
-    line = -BAY_POINTS * np.fft.irfft(spectrum, BAY_POINTS)
+    harmonics of :func:`moving_harmonics` summed at each position, computed once a (track, speed)
+    and kept (read-only)."""
+    n = np.arange(1, MOVING_HARMONICS + 1)
+    phase = np.exp(2j * np.pi * np.outer(np.arange(BAY_POINTS), n) / BAY_POINTS)
+    line = -2.0 * (phase @ moving_harmonics(track, speed, MOVING_HARMONICS)).real
     line.flags.writeable = False
     return line
 
