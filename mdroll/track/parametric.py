@@ -170,7 +170,7 @@ def bay_receptance(track, points: int = BAY_POINTS) -> tuple[np.ndarray, np.ndar
 
 
 def bay_roughness(track, load: float, speed=None) -> np.ndarray:
-    """The equivalent roughness (m) on :data:`BAY_POINTS` uniform positions ``x_j = j d / points``
+    """The equivalent roughness (m) on :data:`BAY_POINTS` uniform positions ``x_j = j d / BAY_POINTS``
     of one bay under the wheel load ``load`` = F0 (N): the quasi-static ``-F0 (alpha_0 - <alpha_0>)``
     (``speed`` None) or the exact moving load's at ``speed`` (m/s, :func:`moving_bay_roughness`)."""
     if speed is None:
