@@ -154,14 +154,15 @@ def random_spectra(params: Params, seed: int, realizations, device: str, roughne
 
 
 def parametric_line(params: Params, track, device: str):
-    """The moving load's equivalent roughness (:func:`mdroll.track.parametric.equivalent_roughness`
-    at the static load F_N, x_i = i dx, x = 0 above a support) as a Warp array on ``device``, for
-    :func:`add_line`; None unless ``track`` asks for it (``track.parametric``)."""
+    """The moving load's equivalent roughness, exact at the run's speed
+    (:func:`mdroll.track.parametric.equivalent_roughness` at the static load F_N and the speed v0,
+    x_i = i dx, x = 0 above a support) as a Warp array on ``device``, for :func:`add_line`; None
+    unless ``track`` asks for it (``track.parametric``)."""
     if track is None or not track.parametric:
         return None
     from ..track.parametric import equivalent_roughness
 
-    line = equivalent_roughness(track, params.F_N, np.arange(params.n_points) * params.dx)
+    line = equivalent_roughness(track, params.F_N, np.arange(params.n_points) * params.dx, speed=params.v0)
     return warp().array(line, dtype=warp().float64, device=device)
 
 

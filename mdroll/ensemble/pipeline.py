@@ -156,7 +156,7 @@ def run_ensemble(
         standing above a sleeper) and a modal wheel's modes
         (:func:`mdroll.ensemble.coupled.contact_compliance`); the roughness moves under a
         stationary wheel. A track with ``parametric = True`` adds the moving load's equivalent
-        roughness (:func:`mdroll.ensemble.lines.parametric_line`) to every line. The result
+        roughness at v0 (:func:`mdroll.ensemble.lines.parametric_line`) to every line. The result
         records them; the wheel and rail vibration spectra follow from the force's
         (:meth:`EnsembleResult.vibration`, :mod:`mdroll.ensemble.vibration`).
 

@@ -1,6 +1,6 @@
-"""The moving load over discrete supports, quasi-statically: the rail's static receptance along a
-sleeper bay and the equivalent roughness of the parametric excitation at the sleeper-passing
-frequency.
+"""The moving load over discrete supports: the rail's static receptance along a sleeper bay, and the
+equivalent roughness of the parametric excitation at the sleeper-passing frequency, quasi-static
+or exact at the run's speed (the rule of a run: always exact, below).
 
 **Static receptance.** ``alpha_0(x)`` (m/N) is the rail's deflection under a static unit load at
 ``x`` (0 above a support, d/2 at mid-span), for the Timoshenko rail (:class:`~mdroll.track.Track`;
@@ -33,9 +33,31 @@ dynamic variation of the receptance along the bay, ``alpha_mid(f) - alpha_sleepe
 forms of :func:`mdroll.track.periodic.point_receptance`), stays within ``tolerance_db`` of its
 low-frequency value: :func:`quasi_static_frequency`, and for the fundamental up to the speed
 ``v = f_qs d``.
+
+**The exact moving load** (:func:`mdroll.track.moving.moving_harmonics`): the steady state of the
+periodic model of :mod:`mdroll.track.periodic` under a constant load at speed v, with its dynamics
+and losses, as the Fourier coefficients of the deflection under the load, harmonic by harmonic;
+:func:`moving_load_deflection` gives the same deflection at points of the bay by a second route
+(the Floquet loads in space) and checks it. Its equivalent roughness is ``r(x) = -(w(x; v) - <w>)``,
+w the deflection under F0 (:func:`moving_bay_roughness`).
+
+**The rule of a run: always the exact line**, at the run's speed (``speed`` of
+:func:`equivalent_roughness`, :func:`harmonics`, :func:`roughness_levels`; None gives the
+quasi-static line). It is a wavenumber integral of closed forms, made once a (track, speed) and
+cheap beside a run (docs/track.md gives its cost), so a switch to the quasi-static line below
+:func:`quasi_static_frequency` would save little, and one rule keeps (1) one model of the track:
+the line follows the same support stiffness, damping included, as the receptances the run steps,
+where the quasi-static line takes the elastic static stiffness, which the damping models need not
+tend to at zero frequency; (2) no jump in a run's results at a switching speed (the losses alone
+change the slow load's line).
+The exact line holds the first :data:`MOVING_HARMONICS` harmonics and leaves out the rest: the
+harmonics fall as 1/n^2 (the kink of the deflection above a support), and wavelengths below d / 64
+lie at or beyond the first zero of the contact filter of a thesis-sized contact (2a = 10 mm).
 """
 
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 
@@ -43,10 +65,12 @@ from mdroll.errors import ParameterError
 from mdroll.roughness.bands import band_centres, wavelength_band_edges_q
 
 from .beam import support_stiffness
+from .moving import check_discrete, moving_harmonics
 from .periodic import free_waves, lattice_sum, point_receptance
 
-#: Samples of alpha_0 over one bay for :func:`equivalent_roughness` (periodic linear
-#: interpolation between them) and :func:`harmonics` (their discrete Fourier transform).
+#: Samples of the line over one bay (:func:`bay_roughness`) for :func:`equivalent_roughness`
+#: (periodic linear interpolation between them) and :func:`harmonics` (their discrete Fourier
+#: transform).
 BAY_POINTS = 1024
 #: Bays added one at a time at most to the semi-infinite rail of :func:`semi_infinite_stiffness`
 #: (it stops when the stiffness no longer changes: after 19-22 for the presets).
@@ -62,14 +86,8 @@ MOVING_BAYS = 120
 MOVING_WAVENUMBERS = 6000
 MOVING_SOURCES = 256
 MOVING_BLOCK = 400
-
-
-def check_discrete(track) -> None:
-    """ParameterError unless ``track`` is discretely supported (a moving load over continuous or
-    rigid support sees no bays)."""
-    if track.support != "discrete":
-        raise ParameterError(f"track.support = {track.support!r} has no sleeper bays: the moving load's "
-                             "parametric excitation needs track.support = 'discrete'")
+#: Harmonics of the exact line (:func:`moving_bay_roughness`): wavelengths down to d / 64.
+MOVING_HARMONICS = 64
 
 
 def element_stiffness(length, track):
@@ -151,46 +169,77 @@ def bay_receptance(track, points: int = BAY_POINTS) -> tuple[np.ndarray, np.ndar
     return x, static_receptance(track, x)
 
 
-def equivalent_roughness(track, load: float, x) -> np.ndarray:
-    """The quasi-static equivalent roughness ``r_p(x) = -F0 (alpha_0(x) - <alpha_0>)`` (m) of the
-    wheel load ``load`` = F0 (N) at positions ``x`` (m, any shape; 0 above a support): heights
-    positive towards the wheel (module docstring). alpha_0 is interpolated linearly and periodically
-    between :data:`BAY_POINTS` samples of a bay and its mean is theirs."""
+def bay_roughness(track, load: float, speed=None) -> np.ndarray:
+    """The equivalent roughness (m) on :data:`BAY_POINTS` uniform positions ``x_j = j d / BAY_POINTS``
+    of one bay under the wheel load ``load`` = F0 (N): the quasi-static ``-F0 (alpha_0 - <alpha_0>)``
+    (``speed`` None) or the exact moving load's at ``speed`` (m/s, :func:`moving_bay_roughness`)."""
+    if speed is None:
+        _, alpha = bay_receptance(track)
+        return -load * (alpha - alpha.mean())
+    return load * moving_bay_roughness(track.structure(), float(speed))
+
+
+@functools.lru_cache(maxsize=16)
+def moving_bay_roughness(track, speed: float) -> np.ndarray:
+    """The exact moving load's equivalent roughness per newton (m/N) on the positions of
+    :func:`bay_roughness`: ``-(w - <w>)``, w the deflection of the first :data:`MOVING_HARMONICS`
+    harmonics of :func:`moving_harmonics` summed at each position, computed once a (track, speed)
+    and kept (read-only)."""
+    n = np.arange(1, MOVING_HARMONICS + 1)
+    phase = np.exp(2j * np.pi * np.outer(np.arange(BAY_POINTS), n) / BAY_POINTS)
+    line = -2.0 * (phase @ moving_harmonics(track, speed, MOVING_HARMONICS)).real
+    line.flags.writeable = False
+    return line
+
+
+def equivalent_roughness(track, load: float, x, speed=None) -> np.ndarray:
+    """The equivalent roughness (m) of the wheel load ``load`` = F0 (N) at positions ``x`` (m, any
+    shape; 0 above a support): quasi-static, ``r_p(x) = -F0 (alpha_0(x) - <alpha_0>)`` (``speed``
+    None), or the exact moving load's at ``speed`` (m/s), ``-(w(x) - <w>)``; heights positive
+    towards the wheel (module docstring). Interpolated linearly and periodically between the
+    :data:`BAY_POINTS` samples of :func:`bay_roughness`, whose mean is zero."""
     d = track.sleeper_spacing
-    grid, alpha = bay_receptance(track)
-    x = np.mod(np.asarray(x, dtype=np.float64), d)
-    between = np.interp(x, np.append(grid, d), np.append(alpha, alpha[0]))
-    return -load * (between - alpha.mean())
+    line = bay_roughness(track, load, speed)
+    grid = np.arange(BAY_POINTS + 1) * (d / BAY_POINTS)
+    return np.interp(np.mod(np.asarray(x, dtype=np.float64), d), grid, np.append(line, line[0]))
 
 
-def harmonics(track, load: float, count: int = 32) -> tuple[np.ndarray, np.ndarray]:
-    """The line spectrum of :func:`equivalent_roughness`: ``(wavelength_m, rms_m)`` of its
-    harmonics n = 1..count, wavelength d / n and RMS ``sqrt(2) |c_n|``, c_n the Fourier
-    coefficients of r_p over a bay (from :data:`BAY_POINTS` samples; count below half of them).
-    At speed v harmonic n lies at the frequency ``n v / d``."""
-    if not 1 <= count < BAY_POINTS // 2:
-        raise ParameterError(f"count = {count!r} is not allowed: 1 to {BAY_POINTS // 2 - 1} harmonics")
-    _, alpha = bay_receptance(track)
-    c = np.fft.rfft(-load * (alpha - alpha.mean())) / BAY_POINTS
+def harmonics(track, load: float, count: int = 32, speed=None) -> tuple[np.ndarray, np.ndarray]:
+    """The line spectrum of :func:`equivalent_roughness` (quasi-static, or exact at ``speed``):
+    ``(wavelength_m, rms_m)`` of its harmonics n = 1..count, wavelength d / n and RMS
+    ``sqrt(2) |c_n|``, c_n the Fourier coefficients of the line over a bay (of the samples of
+    :func:`bay_roughness`; count below half of them, and at most :data:`MOVING_HARMONICS` with a
+    speed). At speed v harmonic n lies at the frequency ``n v / d``."""
+    top = BAY_POINTS // 2 - 1 if speed is None else MOVING_HARMONICS
+    if not 1 <= count <= top:
+        raise ParameterError(f"count = {count!r} is not allowed: 1 to {top} harmonics")
+    c = np.fft.rfft(bay_roughness(track, load, speed)) / BAY_POINTS
     n = np.arange(1, count + 1)
     return track.sleeper_spacing / n, np.sqrt(2.0) * np.abs(c[n])
 
 
-def roughness_levels(track, load: float, wavelengths_mm) -> np.ndarray:
-    """1/3-octave levels (dB re 1 um) of the equivalent roughness in the wavelength bands of
-    nominal centres ``wavelengths_mm`` (mm), as the roughness tables give them
-    (:mod:`mdroll.roughness.bands`: band n holds the wavenumbers ``q_lo <= q < q_hi``): the mean
-    square of the harmonics in each band; ``-inf`` where a band holds none."""
+def roughness_levels(track, load: float, wavelengths_mm, speed=None) -> np.ndarray:
+    """1/3-octave levels (dB re 1 um) of the equivalent roughness (quasi-static, or exact at
+    ``speed``) in the wavelength bands of nominal centres ``wavelengths_mm`` (mm), as the roughness
+    tables give them (:mod:`mdroll.roughness.bands`: band n holds the wavenumbers
+    ``q_lo <= q < q_hi``): the mean square of the harmonics in each band; ``-inf`` where a band
+    holds none; NaN, with a speed, where it may hold one beyond the exact line's
+    :data:`MOVING_HARMONICS`."""
     wavelengths_mm = np.asarray(wavelengths_mm, dtype=np.float64)
     q_lo, q_hi = wavelength_band_edges_q(np.rint(10.0 * np.log10(wavelengths_mm)).astype(np.int64))
     shortest = band_centres(np.rint(10.0 * np.log10(wavelengths_mm.min())) - 1) * 1e-3
     count = min(BAY_POINTS // 2 - 1, int(np.ceil(track.sleeper_spacing / shortest)))
-    wavelength, rms = harmonics(track, load, count)
+    if speed is not None:
+        count = min(count, MOVING_HARMONICS)
+    wavelength, rms = harmonics(track, load, count, speed)
     q = 2.0 * np.pi / wavelength
     inside = (q[None, :] >= q_lo[:, None]) & (q[None, :] < q_hi[:, None])
     mean_square = np.sum(np.where(inside, rms[None, :] ** 2, 0.0), axis=1)
     with np.errstate(divide="ignore"):
-        return 10.0 * np.log10(mean_square / ROUGHNESS_REFERENCE**2)
+        levels = 10.0 * np.log10(mean_square / ROUGHNESS_REFERENCE**2)
+    if speed is not None:
+        levels[q_hi > 2.0 * np.pi * (MOVING_HARMONICS + 1) / track.sleeper_spacing] = np.nan
+    return levels
 
 
 def sleeper_passing_frequency(track, speed: float) -> float:
@@ -250,3 +299,4 @@ def moving_load_deflection(track, load: float, speed: float, x) -> np.ndarray:
             response = lattice_sum(position - xi, z, waves, d) - from_supports * lattice_sum(position, z[:, :1], waves, d)
             out[i] += np.sum(np.exp(1j * k * position) * np.sum(phase * response, axis=1)).real
     return load * dk / np.pi * out
+
