@@ -4,10 +4,11 @@ point receptance and decay rate (closed forms, vectorized over frequency).
 Time dependence ``exp(i omega t)``; a receptance is displacement per force, alpha = w / F (m/N),
 with a negative imaginary part where the system dissipates. A stiffness k with loss factor eta
 becomes the complex modulus k*(omega) of :func:`modulus`: by default the causal constant-loss
-(constant-Q) modulus of Kjartansson (1979), or the hysteretic ``k (1 + i eta)``. References: Grassie, Gregory, Harrison & Johnson (1982), "The dynamic
-response of railway track to high frequency vertical excitation", J. Mech. Eng. Sci. 24;
-Knothe & Grassie (1993), "Modelling of railway track and vehicle/track interaction at high
-frequencies", Vehicle System Dynamics 22; Thompson (2009), *Railway Noise and Vibration*, ch. 3.
+(constant-Q) modulus of Kjartansson (1979), or the hysteretic ``k (1 + i eta)``. References:
+Grassie, Gregory, Harrison & Johnson (1982), "The dynamic response of railway track to high
+frequency vertical excitation", J. Mech. Eng. Sci. 24; Knothe & Grassie (1993), "Modelling of
+railway track and vehicle/track interaction at high frequencies", Vehicle System Dynamics 22;
+Thompson (2009), *Railway Noise and Vibration*, ch. 3.
 
 The beam (deflection w, rotation phi, foundation stiffness per length K_f(omega))::
 
