@@ -63,21 +63,24 @@ def test_modal_wheel_is_its_modes_and_a_causal_suspension():
         Wheel.preset("rigid").modal_form()
 
 
-#: The plain fits' largest complex error over 50 Hz - 5 kHz (dB), rounded up (docs/track.md, "State space").
-RAIL_FIT_DB = {("ballasted-soft-pad", "sleeper"): 0.3, ("ballasted-soft-pad", "midspan"): 0.25,
-               ("ballasted-stiff-pad", "sleeper"): 0.5, ("ballasted-stiff-pad", "midspan"): 0.35,
-               ("slab", "sleeper"): 0.2, ("slab", "midspan"): 0.15}
+#: The passive fits' largest complex error over 50 Hz - 5 kHz (dB), rounded up (docs/track.md,
+#: "State space"), with the presets' causal damping: within the 0.5 dB the coupled run needs.
+RAIL_FIT_DB = {("ballasted-soft-pad", "sleeper"): 0.001, ("ballasted-soft-pad", "midspan"): 0.001,
+               ("ballasted-stiff-pad", "sleeper"): 0.002, ("ballasted-stiff-pad", "midspan"): 0.02,
+               ("slab", "sleeper"): 0.001, ("slab", "midspan"): 0.001}
 
 
 @pytest.mark.parametrize("name, position", list(RAIL_FIT_DB))
-def test_rail_fit_is_stable_and_close(name, position):
+def test_rail_fit_is_passive_and_close(name, position):
+    # the form the coupled run steps: stable, passive by the exact test, and within RAIL_FIT_DB
+    # of the frequency-domain receptance on a grid other than the fit's own
     track = Track.preset(name)
-    form = rail_modal_form(track, position, passive=False)
-    assert np.all(form.poles.real < 0)
+    form = rail_modal_form(track, position)
+    assert np.all(form.poles.real < 0) and form.is_passive()
     f = np.geomspace(*CHECK_BAND, 1500)
     error = np.max(error_db(form.response(f), receptance(track, f, position)))
-    assert error == pytest.approx(form.error_db, abs=0.05)
-    assert error < RAIL_FIT_DB[name, position]
+    assert error == pytest.approx(form.error_db, rel=0.1, abs=1e-4)
+    assert error < RAIL_FIT_DB[name, position] <= 0.5
 
 
 def test_residue_perturbation_is_the_least_change_that_is_passive():
@@ -114,15 +117,15 @@ def test_residue_perturbation_is_the_least_change_that_is_passive():
     assert ref.fun > 1  # the constraints bind: the plain fit is far from passive
 
 
-def test_rail_passive_fit_is_passive_and_close():
-    # the form the coupled run steps on the soft-pad track (a passive fit takes tens of seconds: one
-    # preset): passive by the exact test, and its error over 50 Hz - 5 kHz against the
-    # frequency-domain receptance, rounded up (docs/track.md, "State space")
-    track = Track.preset("ballasted-soft-pad")
+def test_hysteretic_rail_fit_has_its_stated_larger_error():
+    # hysteretic damping is not causal: the passive fit of the soft-pad track misses it by about
+    # half a dB over 50 Hz - 5 kHz (docs/track.md, "State space"), the error it states
+    track = Track.preset("ballasted-soft-pad").with_values(damping="hysteretic")
     form = rail_modal_form(track)
     assert form.is_passive()
     f = np.geomspace(*CHECK_BAND, 1500)
-    assert np.max(error_db(form.response(f), receptance(track, f, "sleeper"))) < 0.55
+    error = np.max(error_db(form.response(f), receptance(track, f, "sleeper")))
+    assert 0.3 < error < 0.6
 
 
 def test_rail_fit_left_not_passive_is_refused(monkeypatch):
@@ -131,7 +134,7 @@ def test_rail_fit_left_not_passive_is_refused(monkeypatch):
 
     monkeypatch.setattr(fit, "PASSIVITY_ROUNDS", 0)
     with pytest.raises(ParameterError, match="could not be fitted passive in 0 rounds"):
-        rail_modal_form(Track(pad_loss=0.31))
+        rail_modal_form(Track(pad_loss=0.31, damping="hysteretic"))
 
 
 def coupled_loop_force(form, params, dt, seconds):
@@ -151,13 +154,19 @@ def coupled_loop_force(form, params, dt, seconds):
 
 
 def test_coupled_loop_is_stable_on_the_passive_fit():
-    """On the passive fit the force stays bounded over a second; on the plain fit (negative losses
-    below its band) the same loop grows without bound: the reason the run steps the passive one."""
-    track, params = Track.preset("ballasted-soft-pad"), Params()
-    passive = coupled_loop_force(rail_modal_form(track), params, 2e-5, 1.0)
-    assert passive[-1] < 1.2 * passive[0]
-    plain = coupled_loop_force(rail_modal_form(track, passive=False), params, 2e-5, 1.0)
-    assert plain[-1] > 1e3 * plain[0]
+    """On the passive fits the force stays bounded over a second; on the plain fit of the
+    hysteretic track (negative losses below its band) the same loop grows without bound: the
+    reason the run steps the passive one. The causal track's plain fit is passive itself."""
+    causal, params = Track.preset("ballasted-soft-pad"), Params()
+    hysteretic = causal.with_values(damping="hysteretic")
+    for track in (causal, hysteretic):
+        passive = coupled_loop_force(rail_modal_form(track), params, 2e-5, 1.0)
+        assert passive[-1] < 1.2 * passive[0]
+    plain = rail_modal_form(hysteretic, passive=False)
+    assert not plain.is_passive() and rail_modal_form(causal, passive=False).is_passive()
+    force = coupled_loop_force(plain, params, 2e-5, 1.0)
+    assert force[-1] > 1e3 * force[0]
+
 
 def test_oscillators_are_passive():
     form = Wheel.preset("standard-920").modal_form()

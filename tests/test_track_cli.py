@@ -8,8 +8,9 @@ import numpy as np
 from mdroll.physics import TWO_PI
 
 #: An Euler-Bernoulli rail (no shear, no rotary inertia) on pads over a rigid base: the Winkler
-#: beam with foundation stiffness k_p (1 + i eta_p) / d per length.
-WINKLER = ["track.support=continuous", "track.rail_shear_stiffness=inf", "track.rail_rotary_inertia=0",
+#: beam with foundation stiffness k_p (1 + i eta_p) / d per length (hysteretic damping: the
+#: closed form's).
+WINKLER = ["track.support=continuous", "track.damping=hysteretic", "track.rail_shear_stiffness=inf", "track.rail_rotary_inertia=0",
            "track.rail_loss=0", "track.sleeper_mass=0", "track.ballast_stiffness=1e20", "track.ballast_loss=0",
            "track.pad_stiffness=1e8", "track.sleeper_spacing=0.6"]
 EI, MASS = 210e9 * 3038.3e-8, 60.21

@@ -3,6 +3,7 @@ bit; a state space of zero output leaves the kernel's numbers unchanged; at smal
 time-domain force equals the linear chain's in every 1/3-octave band 100 Hz - 5 kHz."""
 
 import argparse
+import dataclasses
 import json
 
 import numpy as np
@@ -117,3 +118,21 @@ def check_vibration_outputs(out):
     rows = (out / "bands.csv").read_text().splitlines()[1:]
     assert {row.split(",")[0] for row in rows} == {"roughness", "force", "acceleration", "wheel_velocity",
                                                    "rail_velocity"}
+
+
+def test_checkpoint_key_keeps_a_hysteretic_track_and_tells_the_damping(tmp_path):
+    """A hysteretic track at the default damping frequency writes the checkpoint key of a track
+    before the damping fields existed (its old checkpoints resume); a causal track's differs."""
+    from mdroll.ensemble.checkpoint import read_checkpoint
+
+    params = Params(L=0.05, dx=1e-4, h0=5e-9, q_min=30.0)
+    hysteretic = Track.preset("ballasted-soft-pad").with_values(damping="hysteretic")
+    path = tmp_path / "checkpoint.npz"
+    common = dict(realizations=2, mode="coupled", device="cpu", progress=False, checkpoint=path)
+    run_ensemble(params, track=hysteretic, **common)
+    before = {f: v for f, v in dataclasses.asdict(hysteretic).items()
+              if f not in ("damping", "damping_frequency", "parametric")}
+    assert read_checkpoint(path)[0]["track"] == before
+    run_ensemble(params, track=hysteretic, resume=True, **common)
+    with pytest.raises(ParameterError, match="cannot resume.*differs from the checkpoint: track"):
+        run_ensemble(params, track=Track.preset("ballasted-soft-pad"), resume=True, **common)

@@ -86,7 +86,9 @@ def test_round_trip_on_a_track_recovers_what_ignoring_it_biases():
     known, ignored = record["rows"]
     assert (known["track"], ignored["track"]) == ("known", "ignored")
     assert known["covered"]["H"] and abs(known["error"]["H"]) < 0.02
-    assert abs(ignored["error"]["H"]) > 2 * abs(known["error"]["H"])
+    # the causal track changes the acceleration above 300 Hz less than the hysteretic one did: at
+    # this rung's 8 short realizations ignoring it biases H by about twice the known fit's error
+    assert abs(ignored["error"]["H"]) > 1.5 * abs(known["error"]["H"])
     assert known["gof"]["deviance_per_dof"] < ignored["gof"]["deviance_per_dof"]
 
 

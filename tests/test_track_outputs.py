@@ -22,7 +22,7 @@ from reference import psd
 
 #: Small roughness on a coarse grid that still resolves 5 kHz (Nyquist 25 kHz, bins of 8 Hz),
 #: without contact loss.
-SMALL = {"L": 1.25, "dx": 2e-4, "h0": 5e-9, "q_min": 30.0}
+SMALL = {"L": 2.5, "dx": 1e-4, "h0": 5e-9, "q_min": 30.0}
 SOFT = Track.preset("ballasted-soft-pad")
 
 
@@ -48,7 +48,7 @@ def stepped_output(form, u, dt):
 
 def test_vibration_spectra_are_the_filtered_force_record(device):
     # 4 Hz bins: the window's smoothing (4 bins) is narrow against the wheel's modes (2 zeta f_n)
-    params = Params(**{**SMALL, "L": 2.5})
+    params = Params(**{**SMALL, "L": 2.5, "dx": 2e-4})
     wheel = damped_wheel()
     result = run_ensemble(params, seed=3, realizations=2, mode="coupled", track=SOFT, wheel=wheel, device=device,
                           progress=False)
@@ -70,19 +70,21 @@ def test_vibration_spectra_are_the_filtered_force_record(device):
     assert np.all(result.accel_psd_stderr[1:] > 0)
 
 
-def test_small_roughness_is_the_linear_chain_with_the_tracks_receptances(device):
+@pytest.mark.parametrize("name", ["ballasted-soft-pad", "ballasted-stiff-pad"])
+def test_small_roughness_is_the_linear_chain_with_the_tracks_receptances(name, device):
     """The linear chain F = k_c sinc(qa) r / (k_c (alpha_W + alpha_R + alpha_C)), v = omega alpha F,
     with the track's closed-form receptance (not the run's fitted state space) and the blocked
     force k_c sinc(qa) r of the same realizations (the decoupled run on the rigid rail)."""
+    track = Track.preset(name)
     params = Params(**SMALL)
     common = dict(seed=5, realizations=2, device=device, progress=False)
     blocked = run_ensemble(params, mode="decoupled", **common)
-    coupled = run_ensemble(params, mode="coupled", track=SOFT, **common)
+    coupled = run_ensemble(params, mode="coupled", track=track, **common)
     assert coupled.contact_lost_steps == 0
     keep = (coupled.omega > 0) & (coupled.omega < TWO_PI * 6000.0)  # the bands' bins: 100 Hz - 5.6 kHz
     omega = coupled.omega[keep]
     f = omega / TWO_PI
-    alpha_w, alpha_r = -1.0 / (params.m * omega**2), receptance(SOFT, f)
+    alpha_w, alpha_r = -1.0 / (params.m * omega**2), receptance(track, f)
     force = blocked.force_psd[keep] / np.abs(params.k_contact * (alpha_w + alpha_r + 1.0 / params.k_contact)) ** 2
     vibration = coupled.vibration()
     for got, linear, ref in ((coupled.force_psd[keep], force, REF_FORCE),

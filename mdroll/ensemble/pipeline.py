@@ -204,9 +204,8 @@ def run_ensemble(
     if integrator != INTEGRATORS[0]:
         key["integrator"] = integrator
     if compliance[0] is not None:
-        key["track"], key["wheel"] = (dataclasses.asdict(x) if x else None for x in (track, wheel))
-        if key["track"] and not key["track"]["parametric"]:
-            del key["track"]["parametric"]  # a plain track's key: the one written before the flag existed
+        key["track"] = track.key_fields() if track else None
+        key["wheel"] = dataclasses.asdict(wheel) if wheel else None
     if roughness is None and params.roughness != "powerlaw":
         roughness = from_params(params)  # read (a table file) once, not per batch
     if roughness is not None:

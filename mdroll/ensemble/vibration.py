@@ -65,7 +65,7 @@ def rigid_wheel(params: Params) -> Wheel:
 def structures_of(result) -> tuple[Track, Wheel]:
     """The :class:`Track` and :class:`Wheel` a result records (the rigid ones where it records none,
     the rigid wheel of the run's mass m)."""
-    track = Track(**result.track) if result.track else Track.preset("rigid")
+    track = Track.from_record(result.track) if result.track else Track.preset("rigid")
     if not result.wheel:
         return track, rigid_wheel(result.params)
     wheel = dict(result.wheel)

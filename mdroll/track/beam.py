@@ -2,11 +2,13 @@
 point receptance and decay rate (closed forms, vectorized over frequency).
 
 Time dependence ``exp(i omega t)``; a receptance is displacement per force, alpha = w / F (m/N),
-with a negative imaginary part where the system dissipates. Damping is hysteretic: a stiffness
-k becomes ``k (1 + i eta)``. References: Grassie, Gregory, Harrison & Johnson (1982), "The dynamic
-response of railway track to high frequency vertical excitation", J. Mech. Eng. Sci. 24;
-Knothe & Grassie (1993), "Modelling of railway track and vehicle/track interaction at high
-frequencies", Vehicle System Dynamics 22; Thompson (2009), *Railway Noise and Vibration*, ch. 3.
+with a negative imaginary part where the system dissipates. A stiffness k with loss factor eta
+becomes the complex modulus k*(omega) of :func:`modulus`: by default the causal constant-loss
+(constant-Q) modulus of Kjartansson (1979), or the hysteretic ``k (1 + i eta)``. References:
+Grassie, Gregory, Harrison & Johnson (1982), "The dynamic response of railway track to high
+frequency vertical excitation", J. Mech. Eng. Sci. 24; Knothe & Grassie (1993), "Modelling of
+railway track and vehicle/track interaction at high frequencies", Vehicle System Dynamics 22;
+Thompson (2009), *Railway Noise and Vibration*, ch. 3.
 
 The beam (deflection w, rotation phi, foundation stiffness per length K_f(omega))::
 
@@ -35,21 +37,41 @@ from mdroll.physics import TWO_PI
 DB_PER_NEPER = 20.0 / np.log(10.0)
 
 
-def complex_stiffness(k, eta):
-    """Hysteretic stiffness ``k (1 + i eta)`` (k in N/m or N m^2 or N; eta the loss factor)."""
-    return k * (1.0 + 1j * eta)
+def modulus(k, eta, omega, track):
+    """The complex modulus k*(omega) of a stiffness ``k`` (N/m, N m^2 or N) with loss factor ``eta``
+    under ``track.damping`` (:data:`~mdroll.track.parameters.DAMPINGS`), as an array of omega's
+    shape (rad/s)::
+
+        causal:      k* = k (1 + i eta) (|omega| / omega_r)^p,   p = (2 / pi) arctan(eta),
+        hysteretic:  k* = k (1 + i eta),
+
+    omega_r = 2 pi ``track.damping_frequency``. The causal modulus is Kjartansson's (1979,
+    "Constant Q-wave propagation and attenuation", J. Geophys. Res. 84(B9)) constant-loss model,
+    ``k sqrt(1 + eta^2) (i omega / omega_r)^p``: a fractional derivative, causal and passive, its
+    loss factor eta at every frequency and its storage stiffness k at omega_r, growing as
+    ``(omega / omega_r)^p`` (the Kramers-Kronig relations' price of a constant loss). The
+    hysteretic modulus has the same loss and a constant storage stiffness, and is not causal. With
+    eta = 0 both are k."""
+    omega = np.asarray(omega, dtype=np.float64)
+    stated = k * (1.0 + 1j * eta) * np.ones(omega.shape)
+    if track.damping == "hysteretic":
+        return stated
+    power = 2.0 / np.pi * np.arctan(eta)
+    return stated * (np.abs(omega) / (TWO_PI * track.damping_frequency)) ** power
 
 
 def support_stiffness(omega, track):
     """Dynamic stiffness of one support (N/m): the pad in series with the sleeper mass on ballast::
 
-        K_s = k_p* (k_b* - m_s omega^2) / (k_p* + k_b* - m_s omega^2),   k* = k (1 + i eta).
+        K_s = k_p* (k_b* - m_s omega^2) / (k_p* + k_b* - m_s omega^2)
+
+(k* the complex moduli of pad and ballast, :func:`modulus`).
 
     ``omega`` (rad/s, any shape); ``track`` a :class:`~mdroll.track.Track`. Returns K_s (complex).
     """
     omega = np.asarray(omega, dtype=np.float64)
-    pad = complex_stiffness(track.pad_stiffness, track.pad_loss)
-    below = complex_stiffness(track.ballast_stiffness, track.ballast_loss) - track.sleeper_mass * omega**2
+    pad = modulus(track.pad_stiffness, track.pad_loss, omega, track)
+    below = modulus(track.ballast_stiffness, track.ballast_loss, omega, track) - track.sleeper_mass * omega**2
     return pad * below / (pad + below)
 
 
@@ -62,14 +84,15 @@ def foundation_stiffness(omega, track):
 def wavenumbers(omega, track, K_f):
     """Wavenumbers k_j (rad/m, Im k_j >= 0) and residues A_j (1/N) of the Timoshenko rail on a
     foundation of stiffness per length K_f (N/m^2, complex, broadcast with omega): the two roots
-    s_j = k_j^2 of P(s) (module docstring), with the rail's loss factor on E I and kappa G A.
+    s_j = k_j^2 of P(s) (module docstring), with the rail's loss factor on E I and kappa G A
+    (:func:`modulus`).
     Where a root is real (an undamped travelling wave), k_j = -sqrt(s_j): the wave
     exp(i (omega t - |k_j| |x|)) that carries energy away from the force.
 
     Returns ``(k, A)``, each of shape ``omega.shape + (2,)``.
     """
     omega = np.asarray(omega, dtype=np.float64)
-    EI = complex_stiffness(track.rail_EI, track.rail_loss)
+    EI = modulus(track.rail_EI, track.rail_loss, omega, track)
     m_w2 = track.rail_mass * omega**2 - K_f
     rot = track.rail_rotary_inertia * omega**2
     if np.isinf(track.rail_shear_stiffness):
@@ -77,7 +100,7 @@ def wavenumbers(omega, track, K_f):
         roots = np.stack([s, -s], axis=-1)
         residues = np.stack([1.0 / (EI * 2 * s), -1.0 / (EI * 2 * s)], axis=-1)
     else:
-        GA = complex_stiffness(track.rail_shear_stiffness, track.rail_loss)
+        GA = modulus(track.rail_shear_stiffness, track.rail_loss, omega, track)
         a = GA * EI
         b = -(GA * rot + EI * m_w2)
         c = -m_w2 * (GA - rot)
@@ -85,8 +108,8 @@ def wavenumbers(omega, track, K_f):
         disc = np.where((np.conj(b) * disc).real >= 0, disc, -disc)  # no cancellation in b + disc
         q = -0.5 * (b + disc)
         roots = np.stack([q / a, c / q], axis=-1)
-        d_of = EI * roots + GA - rot[..., None]
-        residues = d_of / (a * (roots - roots[..., ::-1]))
+        d_of = EI[..., None] * roots + (GA - rot)[..., None]
+        residues = d_of / (a[..., None] * (roots - roots[..., ::-1]))
     k = np.sqrt(roots + 0j)
     flip = (k.imag < 0) | ((k.imag == 0) & (k.real > 0))
     return np.where(flip, -k, k), residues

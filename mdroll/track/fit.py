@@ -2,10 +2,13 @@
 coupled time-domain dynamics: a vector fit over :data:`FIT_BAND`, made passive by residue
 perturbation, with its error stated.
 
-The coupled run steps the passive fit. The plain vector fit (``passive=False``) is closer to the
-closed form in the band, but only through negative losses below it (``Im H > 0`` at a few Hz,
-where |H| exceeds the receptance by orders of magnitude): driven through the contact spring by
-the wheel, that is an unstable loop (docs/track.md, "State space")."""
+The coupled run steps the passive fit. A track with causal damping (the default,
+:func:`mdroll.track.beam.modulus`) has a causal, passive receptance, which the passive fit
+follows as closely as the plain one. With hysteretic damping, not causal, the plain vector fit
+(``passive=False``) is closer to the closed form in the band, but only through negative losses
+below it (``Im H > 0`` at a few Hz, where |H| exceeds the receptance by orders of magnitude):
+driven through the contact spring by the wheel, that is an unstable loop, and the passive fit
+pays for its passivity with a larger error (docs/track.md, "State space")."""
 
 from __future__ import annotations
 
@@ -42,8 +45,8 @@ def rail_modal_form(track, position: str = "sleeper", passive: bool = True) -> M
     :func:`mdroll.statespace.error_db`) over :data:`CHECK_BAND` on a grid of 1000 frequencies.
     ``passive`` (the default, the form the coupled run steps): fitted from
     :data:`PASSIVE_LOW_FREQUENCY` and made passive
-    (:meth:`~mdroll.statespace.ModalForm.is_passive`), at a larger error than the plain fit
-    (``passive=False``, module docstring); a track whose fit the rounds of
+    (:meth:`~mdroll.statespace.ModalForm.is_passive`; for a hysteretic track at a larger error
+    than the plain fit, ``passive=False``: module docstring); a track whose fit the rounds of
     :data:`PASSIVITY_ROUNDS` leave not passive is refused (ParameterError: its coupled loop could
     grow without bound). The rigid track has none (an empty form)."""
     if track.support == "rigid":

@@ -10,6 +10,17 @@ representative values inside the ranges Thompson 2009 (chapter 3) gives for ball
 with soft and stiff pads and for slab track, not a transcription of one of its tables
 (:data:`SOURCES` says which range each stands for).
 Units are SI; every stiffness and mass of the support is that of one support (one rail seat).
+
+Damping: every stiffness k with loss factor eta (pads, ballast, the rail's E I and kappa G A) is a
+complex modulus (:func:`mdroll.track.beam.modulus`), by default the causal constant-loss modulus,
+whose storage stiffness is k at ``damping_frequency`` and grows as (f / f_r)^p, p = (2 / pi)
+arctan(eta), as the Kramers-Kronig relations demand of a constant loss factor (pads, eta 0.25:
+x1.43 a decade; ballast, eta 1: x3.16 a decade). The presets' stiffnesses and loss factors hold
+at f_r = 100 Hz: the range of the sleeper-passing frequencies, where the moving load meets the
+supports' stated stiffness, and inside the band where the presets' ranges are quoted. The
+hysteretic modulus k (1 + i eta), the same at every frequency, is not causal (no passive, causal
+state space follows it, so a coupled run steps a fit of it with a larger error: docs/track.md,
+"State space"); it stays for comparison with chains that use it, such as TWINS.
 """
 
 from __future__ import annotations
@@ -24,6 +35,10 @@ from mdroll.settings import Presettable
 #: Support models: ``rigid`` (an immovable rail, zero receptance), ``continuous`` (the supports
 #: smeared along the rail, per length k / sleeper_spacing), ``discrete`` (one support per sleeper).
 SUPPORTS = ("rigid", "continuous", "discrete")
+
+#: Damping models of every stiffness with a loss factor (:func:`mdroll.track.beam.modulus`):
+#: ``causal`` (constant loss, storage stiffness growing with frequency) and ``hysteretic``.
+DAMPINGS = ("causal", "hysteretic")
 
 #: 60E1 (UIC 60) rail, EN 13674-1, with E = 210 GPa, G = 81 GPa, rho = 7850 kg/m^3.
 UIC60 = {
@@ -90,6 +105,12 @@ class Track(Presettable):
         Ballast stiffness under one support (N/m) and loss factor. Default 100 MN/m, 1.0.
     sleeper_spacing : float
         Distance between supports (m). Default 0.6 m.
+    damping : str
+        ``"causal"`` (the default) or ``"hysteretic"`` (:data:`DAMPINGS`): the complex modulus of
+        every stiffness with a loss factor (:func:`mdroll.track.beam.modulus`).
+    damping_frequency : float
+        The frequency f_r (Hz) at which the stated stiffnesses hold exactly under causal
+        damping (module docstring). Default 100 Hz.
     parametric : bool
         A coupled run adds the moving load's quasi-static parametric excitation, the equivalent
         roughness of :func:`mdroll.track.parametric.equivalent_roughness` at the static load
@@ -109,14 +130,19 @@ class Track(Presettable):
     ballast_stiffness: float = 100e6
     ballast_loss: float = 1.0
     sleeper_spacing: float = 0.6
+    damping: str = "causal"
+    damping_frequency: float = 100.0
     parametric: bool = False
 
-    PREFIX, PRESETS, TEXT_FIELDS, FLAG_FIELDS = "track", PRESETS, ("support",), ("parametric",)
+    PREFIX, PRESETS, TEXT_FIELDS, FLAG_FIELDS = "track", PRESETS, ("support", "damping"), ("parametric",)
 
     def __post_init__(self) -> None:
         if self.support not in SUPPORTS:
             raise ParameterError(f"track.support = {self.support!r} is not allowed: choose one of {list(SUPPORTS)}")
-        for name in ("rail_EI", "rail_mass", "pad_stiffness", "ballast_stiffness", "sleeper_spacing"):
+        if self.damping not in DAMPINGS:
+            raise ParameterError(f"track.damping = {self.damping!r} is not allowed: choose one of {list(DAMPINGS)}")
+        for name in ("rail_EI", "rail_mass", "pad_stiffness", "ballast_stiffness", "sleeper_spacing",
+                     "damping_frequency"):
             check_positive(f"track.{name}", getattr(self, name))
         check_number("track.rail_shear_stiffness", self.rail_shear_stiffness, "positive (inf: Euler-Bernoulli)",
                      lambda v: v > 0)
@@ -127,6 +153,23 @@ class Track(Presettable):
         if self.parametric and self.support != "discrete":
             raise ParameterError(f"track.parametric = true is not allowed with track.support = {self.support!r}: the "
                                  "moving load's parametric excitation needs track.support = 'discrete'")
+
+    @classmethod
+    def from_record(cls, fields: dict) -> "Track":
+        """The track of a result's record (:func:`dataclasses.asdict` of a track): a record
+        without ``damping`` was written when every track was hysteretic, and stays so."""
+        return cls(**{"damping": "hysteretic", **fields})
+
+    def key_fields(self) -> dict:
+        """The track's fields as they enter a run's checkpoint key: all of them, less ``parametric``
+        when false and ``damping``, ``damping_frequency`` when hysteretic at the default frequency,
+        so that such a track has the key written before these fields existed."""
+        fields = dataclasses.asdict(self)
+        if not self.parametric:
+            del fields["parametric"]
+        if self.damping == "hysteretic" and self.damping_frequency == Track.damping_frequency:
+            del fields["damping"], fields["damping_frequency"]
+        return fields
 
     def structure(self) -> "Track":
         """The track without the moving load's excitation (``parametric = False``): the structure
