@@ -50,6 +50,10 @@ HELPED_REGISTERS = None
 #: and the two steps before; the first ``PREPARED_AHEAD + 2`` steps are summed directly.
 PREPARED_AHEAD = 8
 
+#: Consecutive steps one build prepares (the algorithm's ``prepare`` returns their two slots),
+#: the second one step further ahead: a helper's builds start this many steps apart.
+PREPARED_STEPS = 2
+
 #: Steps a block's shared ring holds (a power of two above PREPARED_AHEAD + 2): the
 #: indentations, each with its step (plus one, 0 for none), the prepared steps (8 words each)
 #: and the step each holds (plus one).
@@ -143,13 +147,17 @@ def ring_address(ring: wp.tile(dtype=wp.float64, shape=(RING_WORDS,), storage="s
 
 
 @wp.func
-def published_slot(base: wp.uint64, k: int, slot: PreparedSlot):
-    """Writes the prepared step k into the ring, then (after a fence) the step it holds."""
+def published_slots(base: wp.uint64, k: int, slot: PreparedSlot, next_slot: PreparedSlot):
+    """Writes the prepared steps k and k + 1 into the ring, then (after a fence) the steps they
+    hold."""
     at = k & (RING - 1)
+    following = (k + 1) & (RING - 1)
     for i in range(8):
         set_shared_volatile(base, 2 * RING + 8 * at + i, slot[i])
+        set_shared_volatile(base, 2 * RING + 8 * following + i, next_slot[i])
     fence_block()
     set_shared_volatile(base, 10 * RING + at, wp.float64(k + 1))
+    set_shared_volatile(base, 10 * RING + following, wp.float64(k + 2))
 
 
 @wp.func
@@ -172,13 +180,18 @@ def published_depth(base: wp.uint64, s: int, d: wp.float64):
 
 
 @wp.func
-def awaited_depth(base: wp.uint64, s: int) -> wp.float64:
-    """Step s's indentation (m) from the ring, once the stepping warp has published it."""
-    pair = shared_pair(base, s & (RING - 1))
-    while pair[1] != wp.float64(s + 1):
+def awaited_depths(base: wp.uint64, s: int) -> wp.vec3d:
+    """The indentations (m) of steps s, s - 1 and s - 2 from the ring, once the stepping warp has
+    published them (the three read together)."""
+    now = shared_pair(base, s & (RING - 1))
+    before = shared_pair(base, (s - 1) & (RING - 1))
+    earlier = shared_pair(base, (s - 2) & (RING - 1))
+    while now[1] != wp.float64(s + 1) or before[1] != wp.float64(s) or earlier[1] != wp.float64(s - 1):
         backoff()
-        pair = shared_pair(base, s & (RING - 1))
-    return pair[0]
+        now = shared_pair(base, s & (RING - 1))
+        before = shared_pair(base, (s - 1) & (RING - 1))
+        earlier = shared_pair(base, (s - 2) & (RING - 1))
+    return wp.vec3d(now[0], before[0], earlier[0])
 
 
 @wp.func
@@ -203,8 +216,9 @@ def coupled_dynamics(lines_type, lane_force, row_setup=row_index, forward_euler:
 
     ``prepared``: for an algorithm that can prepare a step's force ahead, the pair ``(prepare,
     prepared_force)``: ``prepare(lines, row, c, ahead: int, d, d1, d2, contact, lane, lanes) ->
-    PreparedSlot`` from the indentations (m) ``ahead`` steps before the step and the two before
-    that, and ``prepared_force(lines, row, slot, c, d, contact, lane, lanes) -> (F, row)``,
+    (PreparedSlot, PreparedSlot)``, the steps with the wheel at c and c + 1
+    (:data:`PREPARED_STEPS`) from the indentations (m) ``ahead`` steps before the first and the
+    two before that, and ``prepared_force(lines, row, slot, c, d, contact, lane, lanes) -> (F, row)``,
     the whole F in every lane. ``helped``: the variant that uses them (:func:`with_helpers`).
     One kernel per set of arguments, made once.
     """
@@ -302,16 +316,15 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
                 published_depth(base, 0, d_start)
             sync_block()
             helper = thread // lanes
-            if helper > 0:  # prepare steps helper - 1, helper - 1 + (warps - 1), ... past the first
-                k = PREPARED_AHEAD + 1 + helper
+            if helper > 0:  # prepare the steps past the first, PREPARED_STEPS a build, the helpers in turn
+                k = PREPARED_AHEAD + 2 + PREPARED_STEPS * (helper - 1)
                 while k < steps:
-                    d = awaited_depth(base, k - PREPARED_AHEAD)
-                    slot = wp.static(prepare)(lines, row, first + k, PREPARED_AHEAD, d,
-                                              awaited_depth(base, k - PREPARED_AHEAD - 1),
-                                              awaited_depth(base, k - PREPARED_AHEAD - 2), contact, lane, lanes)
+                    depths = awaited_depths(base, k - PREPARED_AHEAD)
+                    slot, next_slot = wp.static(prepare)(lines, row, first + k, PREPARED_AHEAD, depths[0], depths[1],
+                                                         depths[2], contact, lane, lanes)
                     if lane == 0:
-                        published_slot(base, k, slot)
-                    k += warps - 1
+                        published_slots(base, k, slot, next_slot)
+                    k += PREPARED_STEPS * (warps - 1)
                 return
         forces = row_address(force, r)
         accels = row_address(accel, r)
@@ -327,11 +340,13 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
                 d = d_w - y
             if wp.static(helped):
                 k = s + PREPARED_AHEAD
-                if warps == 1 and k >= PREPARED_AHEAD + 2 and k < steps:  # no helpers: prepare step k here
-                    slot = wp.static(prepare)(lines, row, first + k, PREPARED_AHEAD, d, awaited_depth(base, s - 1),
-                                              awaited_depth(base, s - 2), contact, lane, lanes)
+                built = k >= PREPARED_AHEAD + 2 and (k - PREPARED_AHEAD) % PREPARED_STEPS == 0
+                if warps == 1 and built and k < steps:  # no helpers: prepare steps k, k + 1 here
+                    depths = awaited_depths(base, s)
+                    slot, next_slot = wp.static(prepare)(lines, row, first + k, PREPARED_AHEAD, d, depths[1],
+                                                         depths[2], contact, lane, lanes)
                     if lane == 0:
-                        published_slot(base, k, slot)
+                        published_slots(base, k, slot, next_slot)
                 slot = PreparedSlot()
                 if s >= PREPARED_AHEAD + 2:
                     slot = awaited_slot(base, s)

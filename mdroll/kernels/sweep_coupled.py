@@ -23,7 +23,7 @@ import warp as wp
 from .common import Contact, exact_double, reach_strict, settle_reach, sum_of_squares
 from .dynamics import PreparedSlot, coupled_dynamics
 from .intrinsics import (ballot, broadcast_float, broadcast_int, load_line, lowest_lane, prefetch_float_near,
-                         rough_sqrt, row_address, warp_sum_float, warp_sum_int)
+                         rough_sqrt, row_address, warp_sum_float, warp_sum_float_pair, warp_sum_int)
 
 #: Springs ahead of the wheel whose heights and prefix sums a coupled step prefetches: past the
 #: band's far edge (reach(d + max h), ~850 springs at the thesis's defaults), so that a line of
@@ -135,8 +135,9 @@ def settled_reaches(row: BandRow, d: wp.float64, curvature: wp.float64) -> BandR
 @wp.func
 def prefetch_ahead(row: BandRow, c: int, lane: int):
     """Lane 0 asks the L1 cache for the height and the prefix sum :data:`PREFETCH_AHEAD`
-    springs ahead of spring c, every 16th spring (a cache line of each); nothing on the CPU."""
-    if lane == 0 and (c & 15) == 0:
+    springs ahead of spring c, at springs 0 and 1 of every 16 (a cache line of each; a build of
+    two steps, c of one parity, meets one of them); nothing on the CPU."""
+    if lane == 0 and (c & 14) == 0:
         i = wp.min(c + PREFETCH_AHEAD, row.n - 1)
         prefetch_float_near(row.h, i)
         prefetch_float_near(row.prefix, i)
@@ -267,100 +268,177 @@ def window_reach(level: wp.float64, curvature: wp.float64, inverse: wp.float32) 
 
 
 @wp.func
-def threshold(row: BandRow, i: int, end: int, c: int, curvature: wp.float64) -> wp.float64:
-    """Spring i's threshold ``curvature (i - c)^2 - h_i`` (m), the indentation above which it
-    touches with the wheel at spring c; infinite for ``i >= end`` (past its band)."""
-    m = exact_double(wp.abs(i - c))
-    height = load_line(row.h, wp.min(i, row.n - 1))
-    return wp.where(i < end, curvature * m * m - height, wp.float64(wp.inf))
+def extrapolated(d: wp.float64, rise: wp.float64, bend: wp.float64, ahead: int, spread: wp.float64) -> wp.vec2d:
+    """The window ``(lo, hi)`` (m) of the indentation ``ahead`` steps after d: d with its last change
+    ``rise`` and that change's change ``bend`` carried on, twice as wide a side as they move it,
+    and ``spread`` wider."""
+    steps = wp.float64(ahead)
+    curve = steps * (steps + wp.float64(1.0)) * wp.float64(0.5)
+    centre = d + steps * rise + curve * bend
+    half = wp.float64(2.0) * (steps * wp.abs(rise) + curve * wp.abs(bend)) + spread
+    return wp.vec2d(centre - half, centre + half)
 
 
 @wp.struct
-class LaneSum:
-    """One lane's part of a window's classification (:func:`classified`): the count and sum of
-    thresholds (m) of its springs in contact over the whole window (threshold below it), and
-    of those whose threshold lies in it (``open``) the first two."""
+class PairScan:
+    """The springs that a build of two steps, the wheel at c and c + 1 (:func:`prepared_sum`),
+    classifies, from the reaches ``core`` and ``outer`` of its window: offsets from c ``core + 1
+    .. outer`` and ``-outer .. -core - 1`` for the first step, ``core + 2 .. outer + 1`` and
+    ``-outer + 1 .. -core`` for the second, scanned as springs ``right <= i < right_end`` and
+    ``left <= i < left_end`` of the row (offset 0 in the left scan where core is -1)."""
 
-    count: int
-    total: wp.float64
-    open: int
-    first: wp.float64
-    second: wp.float64
+    c: int
+    core: int
+    outer: int
+    right: int
+    right_end: int
+    left: int
+    left_end: int
 
 
 @wp.func
-def classified(part: LaneSum, t: wp.float64, lo: wp.float64, hi: wp.float64) -> LaneSum:
-    """The lane's part with one more spring of threshold t (m), against the window [lo, hi]."""
-    sure = t < lo
-    open_here = (not sure) and t < hi
-    part.count += wp.where(sure, 1, 0)
-    part.total += wp.where(sure, t, wp.float64(0.0))
-    part.second = wp.where(open_here and part.open == 1, t, part.second)
-    part.first = wp.where(open_here and part.open == 0, t, part.first)
-    part.open += wp.where(open_here, 1, 0)
-    return part
+def pair_scan(row: BandRow, c: int, core: int, outer: int) -> PairScan:
+    """The scans of a build of the two steps with the wheel at c and c + 1 (:class:`PairScan`)."""
+    inner = wp.max(core, 0)
+    scan = PairScan()
+    scan.c = c
+    scan.core = core
+    scan.outer = outer
+    scan.right = wp.max(c + inner + 1, 0)
+    scan.right_end = wp.min(c + outer + 2, row.n)
+    scan.left = wp.max(c - outer, 0)
+    scan.left_end = wp.min(c - inner + 1, row.n)
+    return scan
+
+
+@wp.func
+def pair_thresholds(row: BandRow, i: int, end: int, c: int, first_last: int, second_first: int,
+                    curvature: wp.float64) -> wp.vec2d:
+    """Spring i's thresholds (m) with the wheel at spring c and at c + 1: ``curvature m^2 - h_i``
+    at its offset m from the wheel, the indentation above which it touches; infinite where it
+    lies outside that step's band: ``i >= end`` (past the scan), ``i - c > first_last`` (the
+    first step) or ``i - c < second_first`` (the second)."""
+    m = i - c
+    root = exact_double(wp.abs(m))
+    next_root = exact_double(wp.abs(m - 1))
+    height = load_line(row.h, wp.min(i, row.n - 1))
+    infinite = wp.float64(wp.inf)
+    inside = i < end
+    return wp.vec2d(wp.where(inside and m <= first_last, curvature * root * root - height, infinite),
+                    wp.where(inside and m >= second_first, curvature * next_root * next_root - height, infinite))
+
+
+@wp.func
+def scanned(row: BandRow, scan: PairScan, step: int, curvature: wp.float64) -> wp.vec4d:
+    """The thresholds (m) of the scans' springs ``step`` after their starts, for the first step
+    and the second: ``(right first, right second, left first, left second)``."""
+    right = pair_thresholds(row, scan.right + step, scan.right_end, scan.c, scan.outer, scan.core + 2, curvature)
+    left = pair_thresholds(row, scan.left + step, scan.left_end, scan.c, -scan.core - 1, 1 - scan.outer, curvature)
+    return wp.vec4d(right[0], right[1], left[0], left[1])
+
+
+@wp.func
+def open_thresholds(row: BandRow, scan: PairScan, j: int, slots: int, lo: wp.float64, hi: wp.float64,
+                    curvature: wp.float64, lane: int, lanes: int) -> wp.vec2d:
+    """The thresholds (m) of the first two springs of the warp whose threshold for step j (0 or 1)
+    of the build lies in the window ``[lo, hi)`` (infinite where fewer): each lane's first two of
+    its springs scanned again, then those of the lowest lanes with any (a ballot and shuffles;
+    every lane of the warp must call)."""
+    count = int(0)
+    first = wp.float64(wp.inf)
+    second = wp.float64(wp.inf)
+    for k in range(slots):
+        t = scanned(row, scan, lane + k * lanes, curvature)
+        for side in range(2):
+            u = t[2 * side + j]
+            open_here = lo <= u and u < hi
+            second = wp.where(open_here and count == 1, u, second)
+            first = wp.where(open_here and count == 0, u, first)
+            count += wp.where(open_here, 1, 0)
+    lanes_open = ballot(count > 0)
+    first_lane = lowest_lane(lanes_open)
+    u1 = broadcast_float(first, first_lane)
+    u2 = wp.where(broadcast_int(count, first_lane) >= 2, broadcast_float(second, first_lane),
+                  broadcast_float(first, lowest_lane(lanes_open & (lanes_open - 1))))
+    return wp.vec2d(u1, u2)
+
+
+@wp.func
+def core_thresholds(row: BandRow, c: int, core: int, curvature: wp.float64) -> wp.vec2d:
+    """The count and the sum of thresholds (m) of the springs ``|l - c| <= core`` of the row, in
+    closed form from the prefix sums (eq 18-20)."""
+    i = wp.min(wp.max(c - core, 0), row.n)
+    j = wp.max(wp.min(c + core + 1, row.n), i)
+    squares = curvature * sum_of_squares(i - c, j - 1 - c)
+    total = wp.where(j > i, squares - (load_line(row.prefix, j) - load_line(row.prefix, i)), wp.float64(0.0))
+    return wp.vec2d(wp.float64(j - i), total)
+
+
+@wp.func
+def finished_slot(row: BandRow, scan: PairScan, j: int, counts: int, total: wp.float64, widest: int, slots: int,
+                  lo: wp.float64, hi: wp.float64, curvature: wp.float64, lane: int, lanes: int) -> PreparedSlot:
+    """Step j's (0 or 1) slot of a build (:func:`prepared_sum`) from the warp's packed ``counts``
+    and its sum ``total`` (m) of the band's thresholds in contact: the core added, the open
+    springs found where there are any (:func:`open_thresholds`)."""
+    zero = wp.float64(0.0)
+    infinite = wp.float64(wp.inf)
+    opened = (counts >> (16 + 8 * j)) & 255
+    u = wp.vec2d(infinite, infinite)
+    if opened > 0:
+        u = open_thresholds(row, scan, j, slots, lo, hi, curvature, lane, lanes)
+    whole = core_thresholds(row, scan.c + j, scan.core, curvature)
+    ready = wp.where(widest <= slots * lanes and opened <= 2, wp.float64(1.0), zero)
+    return PreparedSlot(lo, hi, ready, whole[0] + wp.float64((counts >> (8 * j)) & 255), whole[1] + total,
+                        wp.where(opened >= 1, u[0], infinite), wp.where(opened >= 2, u[1], infinite), zero)
 
 
 @wp.func
 def prepared_sum(lines: SweepLines, band: BandRow, c: int, ahead: int, d: wp.float64, d1: wp.float64,
-                 d2: wp.float64, contact: Contact, lane: int, lanes: int) -> PreparedSlot:
-    """The force of the step with the wheel at spring c, prepared ``ahead`` steps before it from
-    the indentations d, d1, d2 (m) of that step and the two before: ``(lo, hi, ready, N, T, u1,
-    u2, 0)``. The window [lo, hi] of indentations: d and its last two changes extrapolated,
-    twice as wide as the extrapolation moves d (at least 1e-12 of the row's roughness). Over
-    it the core ``|l - c| <= reach(lo + min h)`` is in contact (count and sum of thresholds in
-    closed form from the prefix sums), and of the bands out to ``reach(hi + max h)`` each lane
-    classifies its springs, adjacent lanes on adjacent springs (:func:`classified`): in contact
-    over the whole window, open, or out. The warp adds the counts and sums up (one integer
-    reduction, one float64 butterfly) into the count N and the sum T (m) of the thresholds of
-    the springs in contact, and a ballot finds the open ones' thresholds u1, u2 (infinite if
-    none). ``ready`` (1 or 0): the bands fit the lanes and at most two springs are open; then,
-    for any d in the window, F = k (N d - T + max(d - u1, 0) + max(d - u2, 0))."""
+                 d2: wp.float64, contact: Contact, lane: int, lanes: int):
+    """The forces of the two steps with the wheel at springs c and c + 1, prepared ``ahead`` and
+    ``ahead + 1`` steps before them from the indentations d, d1, d2 (m) of the step ``ahead``
+    before c and the two before it, in one build from the same loads: two slots ``(lo, hi,
+    ready, N, T, u1, u2, 0)``. The window [lo, hi] of indentations covers both steps'
+    (:func:`extrapolated`, at least 1e-12 of the row's roughness a side). Over it the core ``|l -
+    c| <= reach(lo + min h)`` of each step is in contact (count and sum of thresholds in closed
+    form from the prefix sums), and of the bands out to ``reach(hi + max h)`` each lane
+    classifies its springs for both steps (:class:`PairScan`), adjacent lanes on adjacent
+    springs: in contact over the whole window (threshold below it), open (in it), or out. The
+    warp adds up the counts (one integer reduction for both steps) and the sums of thresholds
+    (one pair of float64 butterflies) into each step's count N and sum T (m) of the thresholds
+    of the springs in contact; only where a spring is open do ballots find the open ones'
+    thresholds u1, u2 (:func:`open_thresholds`; infinite where none). ``ready`` (1 or 0): the
+    bands fit the lanes and at most two springs are open; then, for any d in the window, F = k
+    (N d - T + max(d - u1, 0) + max(d - u2, 0))."""
     curvature = contact.curvature
     inverse = wp.float32(1.0) / wp.float32(curvature)
     prefetch_ahead(band, c, lane)
     rise = d - d1
     bend = rise - (d1 - d2)
-    steps = wp.float64(ahead)
-    curve = steps * (steps + wp.float64(1.0)) * wp.float64(0.5)
-    centre = d + steps * rise + curve * bend
-    half = wp.float64(2.0) * (steps * wp.abs(rise) + curve * wp.abs(bend)) + wp.float64(1e-12) * (
-        band.high - band.low)
-    lo = centre - half
-    hi = centre + half
+    spread = wp.float64(1e-12) * (band.high - band.low)
+    near = extrapolated(d, rise, bend, ahead, spread)
+    far = extrapolated(d, rise, bend, ahead + 1, spread)
+    lo = wp.min(near[0], far[0])
+    hi = wp.max(near[1], far[1])
     core = window_reach(lo + band.low, curvature, inverse)
-    outer = window_reach(hi + band.high, curvature, inverse)
-    right = wp.max(c + core + 1, 0)
-    right_end = wp.min(c + outer + 1, band.n)
-    left = wp.max(c - outer, 0)
-    left_end = wp.min(c - wp.max(core, 0), band.n)
-    widest = wp.max(right_end - right, left_end - left)
+    scan = pair_scan(band, c, core, window_reach(hi + band.high, curvature, inverse))
+    widest = wp.max(scan.right_end - scan.right, scan.left_end - scan.left)
     slots = lane_slots((widest + lanes - 1) // lanes)
-    i = wp.min(wp.max(c - core, 0), band.n)
-    j = wp.max(wp.min(c + core + 1, band.n), i)
-    squares = curvature * sum_of_squares(i - c, j - 1 - c)
-    core_sum = wp.where(j > i, squares - (load_line(band.prefix, j) - load_line(band.prefix, i)), wp.float64(0.0))
-    part = LaneSum()
-    part.count = 0
-    part.total = wp.float64(0.0)
-    part.open = 0
-    part.first = wp.float64(wp.inf)
-    part.second = wp.float64(wp.inf)
+    zero = wp.float64(0.0)
+    counts = int(0)  # in contact over the window, first step, second step; open, first, second: 8 bits each
+    first_total = wp.float64(0.0)
+    second_total = wp.float64(0.0)
     for k in range(slots):
-        step = lane + k * lanes
-        part = classified(part, threshold(band, right + step, right_end, c, curvature), lo, hi)
-        part = classified(part, threshold(band, left + step, left_end, c, curvature), lo, hi)
-    counts = warp_sum_int(part.count + part.open * 65536)
-    opened = counts >> 16
-    lanes_open = ballot(part.open > 0)
-    first_lane = lowest_lane(lanes_open)
-    u1 = broadcast_float(part.first, first_lane)
-    u2 = wp.where(broadcast_int(part.open, first_lane) >= 2, broadcast_float(part.second, first_lane),
-                  broadcast_float(part.first, lowest_lane(lanes_open & (lanes_open - 1))))
-    ready = wp.where(widest <= slots * lanes and opened <= 2, wp.float64(1.0), wp.float64(0.0))
-    infinite = wp.float64(wp.inf)
-    return PreparedSlot(lo, hi, ready, wp.float64(j - i + (counts & 65535)), core_sum + warp_sum_float(part.total),
-                        wp.where(opened >= 1, u1, infinite), wp.where(opened >= 2, u2, infinite), wp.float64(0.0))
+        t = scanned(band, scan, lane + k * lanes, curvature)
+        for e in range(4):
+            sure = t[e] < lo
+            counts += wp.where(sure, 1, wp.where(t[e] < hi, 65536, 0)) << (8 * (e % 2))
+        first_total += wp.where(t[0] < lo, t[0], zero) + wp.where(t[2] < lo, t[2], zero)
+        second_total += wp.where(t[1] < lo, t[1], zero) + wp.where(t[3] < lo, t[3], zero)
+    counts = warp_sum_int(counts)
+    totals = warp_sum_float_pair(wp.vec2d(first_total, second_total))
+    return (finished_slot(band, scan, 0, counts, totals[0], widest, slots, lo, hi, curvature, lane, lanes),
+            finished_slot(band, scan, 1, counts, totals[1], widest, slots, lo, hi, curvature, lane, lanes))
 
 
 @wp.func
