@@ -50,9 +50,10 @@ HELPED_REGISTERS = None
 #: and the two steps before; the first ``PREPARED_AHEAD + 2`` steps are summed directly.
 PREPARED_AHEAD = 8
 
-#: Consecutive steps one build prepares (the algorithm's ``prepare`` returns their two slots),
-#: the second one step further ahead: a helper's builds start this many steps apart.
-PREPARED_STEPS = 2
+#: Consecutive steps one build prepares (the algorithm's ``prepare`` returns their slots), each
+#: one step further ahead than the one before: a helper's builds start this many steps apart.
+#: A power of two up to 4 (:func:`warp_sums`; one byte a step in a 32-bit reduction).
+PREPARED_STEPS = 4
 
 #: Steps a block's shared ring holds (a power of two above PREPARED_AHEAD + 2): the
 #: indentations, each with its step (plus one, 0 for none), the prepared steps (8 words each)
@@ -62,6 +63,12 @@ RING_WORDS = 11 * RING
 
 #: A prepared step, as the algorithm's ``prepare`` returns it and its ``prepared_force`` reads it.
 PreparedSlot = wp.types.vector(length=8, dtype=wp.float64)
+
+#: The prepared steps of one build, one a row (:data:`PREPARED_STEPS`).
+PreparedSlots = wp.types.matrix(shape=(PREPARED_STEPS, 8), dtype=wp.float64)
+
+#: One float64 for each step of a build.
+PreparedSums = wp.types.vector(length=PREPARED_STEPS, dtype=wp.float64)
 
 # (lines_type, lane_force, row_setup) of each kernel made, and every kernel made, by its arguments
 _MADE_FROM: dict = {}
@@ -140,6 +147,45 @@ def modal_step(modes: Modes, state: wp.array2d(dtype=wp.vec2d), r: int, u: wp.fl
     return free, held
 
 
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+constexpr int P = sizeof(values.c) / sizeof(values.c[0]);
+const unsigned lane = threadIdx.x & 31u;
+double v[P];
+#pragma unroll
+for (int i = 0; i < P; ++i) v[i] = values.c[i];
+int mask = 16;
+#pragma unroll
+for (int width = P; width > 1; width >>= 1, mask >>= 1) {
+    const bool upper = (lane & mask) != 0u;
+#pragma unroll
+    for (int i = 0; i < width / 2; ++i) {
+        const double send = upper ? v[i] : v[i + width / 2];
+        const double keep = upper ? v[i + width / 2] : v[i];
+        v[i] = keep + __shfl_xor_sync(0xffffffffu, send, mask);
+    }
+}
+#pragma unroll
+for (; mask > 0; mask >>= 1) v[0] += __shfl_xor_sync(0xffffffffu, v[0], mask);
+#pragma unroll
+for (int i = 0; i < P; ++i) {
+    int source = 0, level = 16;
+#pragma unroll
+    for (int width = P; width > 1; width >>= 1, level >>= 1) source += (i & (width / 2)) ? level : 0;
+    values.c[i] = __shfl_sync(0xffffffffu, v[0], source);
+}
+#endif
+return values;
+""")
+def warp_sums(values: PreparedSums) -> PreparedSums:
+    """Each of the :data:`PREPARED_STEPS` float64 summed over the 32 lanes of the warp, in every
+    lane (CUDA; the values themselves on the CPU, where a block is one lane; every lane of the
+    warp must call): the first levels of the butterfly halve the values a lane carries (a lane
+    sends the half its partner keeps), the rest add one, and each sum is broadcast from a lane
+    that holds it: a shuffle and an add a level, and one a sum to gather."""
+    ...
+
+
 @wp.func_native("""return (uint64_t)(&ring.data(0));""")
 def ring_address(ring: wp.tile(dtype=wp.float64, shape=(RING_WORDS,), storage="shared")) -> wp.uint64:
     """The address of a block's shared ring."""
@@ -147,17 +193,16 @@ def ring_address(ring: wp.tile(dtype=wp.float64, shape=(RING_WORDS,), storage="s
 
 
 @wp.func
-def published_slots(base: wp.uint64, k: int, slot: PreparedSlot, next_slot: PreparedSlot):
-    """Writes the prepared steps k and k + 1 into the ring, then (after a fence) the steps they
-    hold."""
-    at = k & (RING - 1)
-    following = (k + 1) & (RING - 1)
-    for i in range(8):
-        set_shared_volatile(base, 2 * RING + 8 * at + i, slot[i])
-        set_shared_volatile(base, 2 * RING + 8 * following + i, next_slot[i])
+def published_slots(base: wp.uint64, k: int, slots: PreparedSlots):
+    """Writes the prepared steps k, k + 1, ... of a build into the ring, then (after a fence) the
+    steps they hold."""
+    for j in range(PREPARED_STEPS):
+        at = (k + j) & (RING - 1)
+        for i in range(8):
+            set_shared_volatile(base, 2 * RING + 8 * at + i, slots[j, i])
     fence_block()
-    set_shared_volatile(base, 10 * RING + at, wp.float64(k + 1))
-    set_shared_volatile(base, 10 * RING + following, wp.float64(k + 2))
+    for j in range(PREPARED_STEPS):
+        set_shared_volatile(base, 10 * RING + ((k + j) & (RING - 1)), wp.float64(k + j + 1))
 
 
 @wp.func
@@ -216,9 +261,8 @@ def coupled_dynamics(lines_type, lane_force, row_setup=row_index, forward_euler:
 
     ``prepared``: for an algorithm that can prepare a step's force ahead, the pair ``(prepare,
     prepared_force)``: ``prepare(lines, row, c, ahead: int, d, d1, d2, contact, lane, lanes) ->
-    (PreparedSlot, PreparedSlot)``, the steps with the wheel at c and c + 1
-    (:data:`PREPARED_STEPS`) from the indentations (m) ``ahead`` steps before the first and the
-    two before that, and ``prepared_force(lines, row, slot, c, d, contact, lane, lanes) -> (F, row)``,
+    PreparedSlots``, the :data:`PREPARED_STEPS` steps with the wheel at c, c + 1, ... from the
+    indentations (m) ``ahead`` steps before the first and the two before that, and ``prepared_force(lines, row, slot, c, d, contact, lane, lanes) -> (F, row)``,
     the whole F in every lane. ``helped``: the variant that uses them (:func:`with_helpers`).
     One kernel per set of arguments, made once.
     """
@@ -320,10 +364,10 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
                 k = PREPARED_AHEAD + 2 + PREPARED_STEPS * (helper - 1)
                 while k < steps:
                     depths = awaited_depths(base, k - PREPARED_AHEAD)
-                    slot, next_slot = wp.static(prepare)(lines, row, first + k, PREPARED_AHEAD, depths[0], depths[1],
-                                                         depths[2], contact, lane, lanes)
+                    slots = wp.static(prepare)(lines, row, first + k, PREPARED_AHEAD, depths[0], depths[1], depths[2],
+                                               contact, lane, lanes)
                     if lane == 0:
-                        published_slots(base, k, slot, next_slot)
+                        published_slots(base, k, slots)
                     k += PREPARED_STEPS * (warps - 1)
                 return
         forces = row_address(force, r)
@@ -340,13 +384,13 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
                 d = d_w - y
             if wp.static(helped):
                 k = s + PREPARED_AHEAD
-                built = k >= PREPARED_AHEAD + 2 and (k - PREPARED_AHEAD) % PREPARED_STEPS == 0
-                if warps == 1 and built and k < steps:  # no helpers: prepare steps k, k + 1 here
+                built = k >= PREPARED_AHEAD + 2 and (k - PREPARED_AHEAD - 2) % PREPARED_STEPS == 0
+                if warps == 1 and built and k < steps:  # no helpers: prepare steps k, k + 1, ... here
                     depths = awaited_depths(base, s)
-                    slot, next_slot = wp.static(prepare)(lines, row, first + k, PREPARED_AHEAD, d, depths[1],
-                                                         depths[2], contact, lane, lanes)
+                    slots = wp.static(prepare)(lines, row, first + k, PREPARED_AHEAD, d, depths[1], depths[2], contact,
+                                               lane, lanes)
                     if lane == 0:
-                        published_slots(base, k, slot, next_slot)
+                        published_slots(base, k, slots)
                 slot = PreparedSlot()
                 if s >= PREPARED_AHEAD + 2:
                     slot = awaited_slot(base, s)

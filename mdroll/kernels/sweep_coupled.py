@@ -21,7 +21,7 @@ window.
 import warp as wp
 
 from .common import Contact, exact_double, reach_strict, settle_reach, sum_of_squares
-from .dynamics import PreparedSlot, coupled_dynamics
+from .dynamics import PREPARED_STEPS, PreparedSlot, PreparedSlots, PreparedSums, coupled_dynamics, warp_sums
 from .intrinsics import (ballot, broadcast_float, broadcast_int, load_line, lowest_lane, prefetch_float_near,
                          rough_sqrt, row_address, warp_sum_float, warp_sum_float_pair, warp_sum_int)
 
@@ -280,12 +280,13 @@ def extrapolated(d: wp.float64, rise: wp.float64, bend: wp.float64, ahead: int, 
 
 
 @wp.struct
-class PairScan:
-    """The springs that a build of two steps, the wheel at c and c + 1 (:func:`prepared_sum`),
-    classifies, from the reaches ``core`` and ``outer`` of its window: offsets from c ``core + 1
-    .. outer`` and ``-outer .. -core - 1`` for the first step, ``core + 2 .. outer + 1`` and
-    ``-outer + 1 .. -core`` for the second, scanned as springs ``right <= i < right_end`` and
-    ``left <= i < left_end`` of the row (offset 0 in the left scan where core is -1)."""
+class BuildScan:
+    """The springs that a build of :data:`~mdroll.kernels.dynamics.PREPARED_STEPS` steps, the wheel
+    at c, c + 1, ... (:func:`prepared_sum`), classifies, from the reaches ``core`` and ``outer`` of
+    its window: every spring at an offset ``core < |l - c - j| <= outer`` from one of the steps'
+    wheel positions c + j, scanned as springs ``left <= l < left_end`` (offsets ``-outer`` up to
+    those of the last step's core) and ``right <= l < right_end`` (from past the first step's
+    core and the left scan to ``outer`` past the last step's wheel), on the row."""
 
     c: int
     core: int
@@ -297,70 +298,72 @@ class PairScan:
 
 
 @wp.func
-def pair_scan(row: BandRow, c: int, core: int, outer: int) -> PairScan:
-    """The scans of a build of the two steps with the wheel at c and c + 1 (:class:`PairScan`)."""
+def build_scan(row: BandRow, c: int, core: int, outer: int) -> BuildScan:
+    """The scans of a build with the wheel at c first (:class:`BuildScan`)."""
     inner = wp.max(core, 0)
-    scan = PairScan()
+    last = PREPARED_STEPS - 1
+    scan = BuildScan()
     scan.c = c
     scan.core = core
     scan.outer = outer
-    scan.right = wp.max(c + inner + 1, 0)
-    scan.right_end = wp.min(c + outer + 2, row.n)
     scan.left = wp.max(c - outer, 0)
-    scan.left_end = wp.min(c - inner + 1, row.n)
+    scan.left_end = wp.min(c + last - inner, row.n)
+    scan.right = wp.max(c + wp.max(inner + 1, last - inner), 0)
+    scan.right_end = wp.min(c + outer + last + 1, row.n)
     return scan
 
 
 @wp.func
-def pair_thresholds(row: BandRow, i: int, end: int, c: int, first_last: int, second_first: int,
-                    curvature: wp.float64) -> wp.vec2d:
-    """Spring i's thresholds (m) with the wheel at spring c and at c + 1: ``curvature m^2 - h_i``
-    at its offset m from the wheel, the indentation above which it touches; infinite where it
-    lies outside that step's band: ``i >= end`` (past the scan), ``i - c > first_last`` (the
-    first step) or ``i - c < second_first`` (the second)."""
-    m = i - c
-    root = exact_double(wp.abs(m))
-    next_root = exact_double(wp.abs(m - 1))
+def tallied(row: BandRow, scan: BuildScan, i: int, end: int, offset: wp.float64, lo: wp.float64, hi: wp.float64,
+            curvature: wp.float64, counts: int, totals: PreparedSums, opened: bool):
+    """The lane's tallies with spring i (``i < end``: on the scan) at the float64 ``offset = i -
+    c``, classified for each step j of the build by its threshold ``curvature (i - c - j)^2 -
+    h_i`` (m), the indentation above which it touches: where the spring is in step j's band, in
+    contact over the whole window [lo, hi] (threshold below it: counted in byte j of ``counts``,
+    summed in ``totals[j]``) or open (threshold in it: ``opened``)."""
     height = load_line(row.h, wp.min(i, row.n - 1))
-    infinite = wp.float64(wp.inf)
     inside = i < end
-    return wp.vec2d(wp.where(inside and m <= first_last, curvature * root * root - height, infinite),
-                    wp.where(inside and m >= second_first, curvature * next_root * next_root - height, infinite))
+    root = offset  # i - c - j, float64
+    shift = i - scan.c  # the same, int
+    for j in range(PREPARED_STEPS):
+        t = curvature * root * root - height
+        away = wp.abs(shift)
+        member = inside and away > scan.core and away <= scan.outer
+        sure = member and t < lo
+        counts += wp.where(sure, int(1) << (8 * j), int(0))
+        totals[j] = totals[j] + wp.where(sure, t, wp.float64(0.0))
+        opened = opened or (member and lo <= t and t < hi)
+        root -= wp.float64(1.0)
+        shift -= 1
+    return counts, totals, opened
 
 
 @wp.func
-def scanned(row: BandRow, scan: PairScan, step: int, curvature: wp.float64) -> wp.vec4d:
-    """The thresholds (m) of the scans' springs ``step`` after their starts, for the first step
-    and the second: ``(right first, right second, left first, left second)``."""
-    right = pair_thresholds(row, scan.right + step, scan.right_end, scan.c, scan.outer, scan.core + 2, curvature)
-    left = pair_thresholds(row, scan.left + step, scan.left_end, scan.c, -scan.core - 1, 1 - scan.outer, curvature)
-    return wp.vec4d(right[0], right[1], left[0], left[1])
-
-
-@wp.func
-def open_thresholds(row: BandRow, scan: PairScan, j: int, slots: int, lo: wp.float64, hi: wp.float64,
-                    curvature: wp.float64, lane: int, lanes: int) -> wp.vec2d:
-    """The thresholds (m) of the first two springs of the warp whose threshold for step j (0 or 1)
-    of the build lies in the window ``[lo, hi)`` (infinite where fewer): each lane's first two of
-    its springs scanned again, then those of the lowest lanes with any (a ballot and shuffles;
-    every lane of the warp must call)."""
+def open_thresholds(row: BandRow, scan: BuildScan, j: int, slots: int, lo: wp.float64, hi: wp.float64,
+                    curvature: wp.float64, lane: int, lanes: int) -> wp.vec3d:
+    """How many springs of step j's band have their threshold (m) in the window ``[lo, hi)``, and
+    the thresholds of the first two (infinite where fewer): each lane's springs scanned again,
+    its first two kept, then those of the lowest lanes with any (a reduction, a ballot and
+    shuffles; every lane of the warp must call)."""
     count = int(0)
     first = wp.float64(wp.inf)
     second = wp.float64(wp.inf)
-    for k in range(slots):
-        t = scanned(row, scan, lane + k * lanes, curvature)
-        for side in range(2):
-            u = t[2 * side + j]
-            open_here = lo <= u and u < hi
-            second = wp.where(open_here and count == 1, u, second)
-            first = wp.where(open_here and count == 0, u, first)
-            count += wp.where(open_here, 1, 0)
+    for k in range(2 * slots):
+        i = wp.where(k % 2 == 0, scan.right, scan.left) + lane + (k // 2) * lanes
+        end = wp.where(k % 2 == 0, scan.right_end, scan.left_end)
+        away = wp.abs(i - scan.c - j)
+        root = exact_double(away)
+        t = curvature * root * root - load_line(row.h, wp.min(i, row.n - 1))
+        open_here = i < end and away > scan.core and away <= scan.outer and lo <= t and t < hi
+        second = wp.where(open_here and count == 1, t, second)
+        first = wp.where(open_here and count == 0, t, first)
+        count += wp.where(open_here, 1, 0)
     lanes_open = ballot(count > 0)
     first_lane = lowest_lane(lanes_open)
     u1 = broadcast_float(first, first_lane)
     u2 = wp.where(broadcast_int(count, first_lane) >= 2, broadcast_float(second, first_lane),
                   broadcast_float(first, lowest_lane(lanes_open & (lanes_open - 1))))
-    return wp.vec2d(u1, u2)
+    return wp.vec3d(wp.float64(warp_sum_int(count)), u1, u2)
 
 
 @wp.func
@@ -375,38 +378,21 @@ def core_thresholds(row: BandRow, c: int, core: int, curvature: wp.float64) -> w
 
 
 @wp.func
-def finished_slot(row: BandRow, scan: PairScan, j: int, counts: int, total: wp.float64, widest: int, slots: int,
-                  lo: wp.float64, hi: wp.float64, curvature: wp.float64, lane: int, lanes: int) -> PreparedSlot:
-    """Step j's (0 or 1) slot of a build (:func:`prepared_sum`) from the warp's packed ``counts``
-    and its sum ``total`` (m) of the band's thresholds in contact: the core added, the open
-    springs found where there are any (:func:`open_thresholds`)."""
-    zero = wp.float64(0.0)
-    infinite = wp.float64(wp.inf)
-    opened = (counts >> (16 + 8 * j)) & 255
-    u = wp.vec2d(infinite, infinite)
-    if opened > 0:
-        u = open_thresholds(row, scan, j, slots, lo, hi, curvature, lane, lanes)
-    whole = core_thresholds(row, scan.c + j, scan.core, curvature)
-    ready = wp.where(widest <= slots * lanes and opened <= 2, wp.float64(1.0), zero)
-    return PreparedSlot(lo, hi, ready, whole[0] + wp.float64((counts >> (8 * j)) & 255), whole[1] + total,
-                        wp.where(opened >= 1, u[0], infinite), wp.where(opened >= 2, u[1], infinite), zero)
-
-
-@wp.func
 def prepared_sum(lines: SweepLines, band: BandRow, c: int, ahead: int, d: wp.float64, d1: wp.float64,
-                 d2: wp.float64, contact: Contact, lane: int, lanes: int):
-    """The forces of the two steps with the wheel at springs c and c + 1, prepared ``ahead`` and
-    ``ahead + 1`` steps before them from the indentations d, d1, d2 (m) of the step ``ahead``
-    before c and the two before it, in one build from the same loads: two slots ``(lo, hi,
-    ready, N, T, u1, u2, 0)``. The window [lo, hi] of indentations covers both steps'
-    (:func:`extrapolated`, at least 1e-12 of the row's roughness a side). Over it the core ``|l -
-    c| <= reach(lo + min h)`` of each step is in contact (count and sum of thresholds in closed
-    form from the prefix sums), and of the bands out to ``reach(hi + max h)`` each lane
-    classifies its springs for both steps (:class:`PairScan`), adjacent lanes on adjacent
-    springs: in contact over the whole window (threshold below it), open (in it), or out. The
-    warp adds up the counts (one integer reduction for both steps) and the sums of thresholds
-    (one pair of float64 butterflies) into each step's count N and sum T (m) of the thresholds
-    of the springs in contact; only where a spring is open do ballots find the open ones'
+                 d2: wp.float64, contact: Contact, lane: int, lanes: int) -> PreparedSlots:
+    """The forces of the :data:`~mdroll.kernels.dynamics.PREPARED_STEPS` steps with the wheel at
+    springs c, c + 1, ..., prepared ``ahead``, ``ahead + 1``, ... steps before them from the
+    indentations d, d1, d2 (m) of the step ``ahead`` before c and the two before it, in one build
+    from the same loads: a slot ``(lo, hi, ready, N, T, u1, u2, 0)`` each (lane 0's are whole).
+    The window [lo, hi] of indentations covers all the steps' (:func:`extrapolated`, at least
+    1e-12 of the row's roughness a side). Over it the core ``|l - c - j| <= reach(lo + min h)``
+    of step j is in contact (count and sum of thresholds in closed form from the prefix sums),
+    and of the bands out to ``reach(hi + max h)`` each lane classifies its springs for every step
+    (:class:`BuildScan`, :func:`tallied`), adjacent lanes on adjacent springs: in contact over
+    the whole window (threshold below it), open (in it), or out. The warp adds up the counts
+    (one integer reduction for all steps) and the sums of thresholds (:func:`~mdroll.kernels.dynamics.warp_sums`) into
+    each step's count N and sum T (m) of the thresholds of the springs in contact; only where a
+    spring is open (one ballot) do further reductions find how many and the first two's
     thresholds u1, u2 (:func:`open_thresholds`; infinite where none). ``ready`` (1 or 0): the
     bands fit the lanes and at most two springs are open; then, for any d in the window, F = k
     (N d - T + max(d - u1, 0) + max(d - u2, 0))."""
@@ -417,28 +403,42 @@ def prepared_sum(lines: SweepLines, band: BandRow, c: int, ahead: int, d: wp.flo
     bend = rise - (d1 - d2)
     spread = wp.float64(1e-12) * (band.high - band.low)
     near = extrapolated(d, rise, bend, ahead, spread)
-    far = extrapolated(d, rise, bend, ahead + 1, spread)
-    lo = wp.min(near[0], far[0])
-    hi = wp.max(near[1], far[1])
+    far = extrapolated(d, rise, bend, ahead + PREPARED_STEPS - 1, spread)
+    lo = wp.where(near[0] < far[0], near[0], far[0])
+    hi = wp.where(near[1] > far[1], near[1], far[1])
     core = window_reach(lo + band.low, curvature, inverse)
-    scan = pair_scan(band, c, core, window_reach(hi + band.high, curvature, inverse))
+    scan = build_scan(band, c, core, window_reach(hi + band.high, curvature, inverse))
     widest = wp.max(scan.right_end - scan.right, scan.left_end - scan.left)
     slots = lane_slots((widest + lanes - 1) // lanes)
-    zero = wp.float64(0.0)
-    counts = int(0)  # in contact over the window, first step, second step; open, first, second: 8 bits each
-    first_total = wp.float64(0.0)
-    second_total = wp.float64(0.0)
+    counts = int(0)  # byte j: step j's springs in contact over the window
+    totals = PreparedSums()
+    opened = bool(False)
+    right_offset = wp.float64(scan.right + lane - c)  # grows by `lanes` a slot
+    left_offset = wp.float64(scan.left + lane - c)
+    stride = wp.float64(lanes)
     for k in range(slots):
-        t = scanned(band, scan, lane + k * lanes, curvature)
-        for e in range(4):
-            sure = t[e] < lo
-            counts += wp.where(sure, 1, wp.where(t[e] < hi, 65536, 0)) << (8 * (e % 2))
-        first_total += wp.where(t[0] < lo, t[0], zero) + wp.where(t[2] < lo, t[2], zero)
-        second_total += wp.where(t[1] < lo, t[1], zero) + wp.where(t[3] < lo, t[3], zero)
+        step = lane + k * lanes
+        counts, totals, opened = tallied(band, scan, scan.right + step, scan.right_end, right_offset, lo, hi,
+                                         curvature, counts, totals, opened)
+        counts, totals, opened = tallied(band, scan, scan.left + step, scan.left_end, left_offset, lo, hi,
+                                         curvature, counts, totals, opened)
+        right_offset += stride
+        left_offset += stride
     counts = warp_sum_int(counts)
-    totals = warp_sum_float_pair(wp.vec2d(first_total, second_total))
-    return (finished_slot(band, scan, 0, counts, totals[0], widest, slots, lo, hi, curvature, lane, lanes),
-            finished_slot(band, scan, 1, counts, totals[1], widest, slots, lo, hi, curvature, lane, lanes))
+    totals = warp_sums(totals)
+    any_open = ballot(opened) != 0
+    zero = wp.float64(0.0)
+    infinite = wp.float64(wp.inf)
+    built = PreparedSlots()
+    for j in range(PREPARED_STEPS):
+        found = wp.vec3d(zero, infinite, infinite)
+        if any_open:
+            found = open_thresholds(band, scan, j, slots, lo, hi, curvature, lane, lanes)
+        whole = core_thresholds(band, c + j, core, curvature)
+        ready = wp.where(widest <= slots * lanes and found[0] <= wp.float64(2.0), wp.float64(1.0), zero)
+        built[j] = PreparedSlot(lo, hi, ready, whole[0] + wp.float64((counts >> (8 * j)) & 255), whole[1] + totals[j],
+                                found[1], wp.where(found[0] >= wp.float64(2.0), found[2], infinite), zero)
+    return built
 
 
 @wp.func
