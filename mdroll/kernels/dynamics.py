@@ -219,6 +219,19 @@ def awaited_slot(base: wp.uint64, s: int) -> PreparedSlot:
 
 
 @wp.func
+def peeked_slot(base: wp.uint64, s: int):
+    """The prepared step s as the ring holds it now, and whether a helper has written it (its step
+    read first, then its words): read the step before it is needed, so that its loads wait on
+    nothing and stand in no step's chain."""
+    at = s & (RING - 1)
+    written = shared_volatile(base, 10 * RING + at) == wp.float64(s + 1)
+    slot = PreparedSlot()
+    for i in range(8):
+        slot[i] = shared_volatile(base, 2 * RING + 8 * at + i)
+    return slot, written
+
+
+@wp.func
 def published_depth(base: wp.uint64, s: int, d: wp.float64):
     """Writes step s's indentation d (m) into the ring with its step (plus one), in one write."""
     set_shared_pair(base, s & (RING - 1), d, wp.float64(s + 1))
@@ -377,6 +390,8 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
         y = wp.float64(0.0)  # the contact point's displacement (m), modal variant
         free = wp.float64(0.0)  # this lane's part of the next y without force
         held = held_coefficients(modes, lane, lanes)  # this lane's first modes
+        ahead = PreparedSlot()  # the next step's prepared slot, read a step early (helped variant)
+        ahead_written = bool(False)
         for s in range(steps):
             F = wp.float64(0.0)
             d = d_w
@@ -393,7 +408,10 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
                         published_slots(base, k, slots)
                 slot = PreparedSlot()
                 if s >= PREPARED_AHEAD + 2:
-                    slot = awaited_slot(base, s)
+                    slot = ahead
+                    if not ahead_written:  # not yet written when read: wait for it
+                        slot = awaited_slot(base, s)
+                ahead, ahead_written = peeked_slot(base, s + 1)
                 if wp.static(modal):
                     free_sum = warp_sum_float(free)  # not waiting on this step's force
                     F, row = wp.static(prepared_force)(lines, row, slot, first + s, d, contact, lane, lanes)

@@ -450,13 +450,12 @@ def prepared_force(lines: SweepLines, row: BandRow, prepared: PreparedSlot, c: i
     with no load and no reduction; else (or not ready) the band summed directly
     (:func:`lane_band_force`, its reaches carried in the row) and the lanes added up."""
     zero = wp.float64(0.0)
-    F = contact.k_spring * (prepared[3] * d - prepared[4] + wp.max(d - prepared[5], zero) + wp.max(d - prepared[6],
-                                                                                                    zero))
-    moved = row
-    if not (prepared[2] > zero and prepared[0] <= d and d <= prepared[1]):
-        part, moved = lane_band_force(row, c, d, contact, lane, lanes)
-        F = warp_sum_float(part)
-    return F, moved
+    if prepared[2] > zero and prepared[0] <= d and d <= prepared[1]:
+        first = wp.where(d > prepared[5], d - prepared[5], zero)
+        second = wp.where(d > prepared[6], d - prepared[6], zero)
+        return contact.k_spring * (prepared[3] * d - prepared[4] + first + second), row
+    part, moved = lane_band_force(row, c, d, contact, lane, lanes)
+    return warp_sum_float(part), moved
 
 
 @wp.func
