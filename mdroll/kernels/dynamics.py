@@ -48,7 +48,7 @@ HELPED_REGISTERS = None
 
 #: Steps ahead of the stepping warp that a step's force is prepared, from the indentation then
 #: and the two steps before; the first ``PREPARED_AHEAD + 2`` steps are summed directly.
-PREPARED_AHEAD = 8
+PREPARED_AHEAD = 16
 
 #: Consecutive steps one build prepares (the algorithm's ``prepare`` returns their slots), each
 #: one step further ahead than the one before: a helper's builds start this many steps apart.
@@ -58,7 +58,7 @@ PREPARED_STEPS = 4
 #: Steps a block's shared ring holds (a power of two above PREPARED_AHEAD + 2): the
 #: indentations, each with its step (plus one, 0 for none), the prepared steps (8 words each)
 #: and the step each holds (plus one).
-RING = 16
+RING = 32
 RING_WORDS = 11 * RING
 
 #: A prepared step, as the algorithm's ``prepare`` returns it and its ``prepared_force`` reads it.
