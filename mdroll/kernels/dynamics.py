@@ -64,6 +64,9 @@ RING_WORDS = 11 * RING
 #: A prepared step, as the algorithm's ``prepare`` returns it and its ``prepared_force`` reads it.
 PreparedSlot = wp.types.vector(length=8, dtype=wp.float64)
 
+#: A prepared step as the stepping warp uses it (:func:`linear_step`).
+PreparedLine = wp.types.vector(length=6, dtype=wp.float64)
+
 #: The prepared steps of one build, one a row (:data:`PREPARED_STEPS`).
 PreparedSlots = wp.types.matrix(shape=(PREPARED_STEPS, 8), dtype=wp.float64)
 
@@ -219,6 +222,20 @@ def awaited_slot(base: wp.uint64, s: int) -> PreparedSlot:
 
 
 @wp.func
+def linear_step(slot: PreparedSlot, contact: Contact, F_N: wp.float64, inv_mass: wp.float64) -> PreparedLine:
+    """A prepared step's force and the wheel's acceleration as linear functions of d where they
+    are (the slot ready, no spring open): ``(lo, hi, k N, k T, k N / m, (F_N + k T) / m)`` for F =
+    k N d - k T and d'' = (F_N + k T) / m - (k N / m) d over ``lo <= d <= hi``, an empty window
+    (lo infinite) where they are not; worked out before the step, whose chain is then one
+    operation from d to d''."""
+    stiffness = contact.k_spring * slot[3]
+    offset = contact.k_spring * slot[4]
+    linear = slot[2] > wp.float64(0.0) and slot[5] == wp.float64(wp.inf)
+    return PreparedLine(wp.where(linear, slot[0], wp.float64(wp.inf)), slot[1], stiffness, offset,
+                        stiffness * inv_mass, (F_N + offset) * inv_mass)
+
+
+@wp.func
 def peeked_slot(base: wp.uint64, s: int):
     """The prepared step s as the ring holds it now, and whether a helper has written it (its step
     read first, then its words): read the step before it is needed, so that its loads wait on
@@ -226,7 +243,7 @@ def peeked_slot(base: wp.uint64, s: int):
     at = s & (RING - 1)
     written = shared_volatile(base, 10 * RING + at) == wp.float64(s + 1)
     slot = PreparedSlot()
-    for i in range(8):
+    for i in range(6):  # those that linear_step reads
         slot[i] = shared_volatile(base, 2 * RING + 8 * at + i)
     return slot, written
 
@@ -317,6 +334,22 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
                     helped: bool) -> wp.Kernel:
     prepare, prepared_force = prepared if helped else (None, None)
 
+    @wp.func
+    def prepared_step(lines: lines_type, row: Any, base: wp.uint64, s: int, line: PreparedLine, c: int,
+                      d: wp.float64, contact: Contact, F_N: wp.float64, inv_mass: wp.float64, lane: int,
+                      lanes: int):
+        """F (N) and the wheel's acceleration (m/s^2) at indentation d (m) of prepared step s (its
+        slot in the ring) and the row for the next step: with d in the window of its
+        :func:`linear_step`, one operation from d to the acceleration; else the algorithm's
+        ``prepared_force`` of the slot."""
+        if line[0] <= d and d <= line[1]:
+            return line[2] * d - line[3], line[5] - line[4] * d, row
+        slot = PreparedSlot()  # none ready before the first prepared step: the band summed directly
+        if s >= PREPARED_AHEAD + 2:
+            slot = awaited_slot(base, s)
+        F, moved = wp.static(prepared_force)(lines, row, slot, c, d, contact, lane, lanes)
+        return F, (F_N - F) * inv_mass, moved
+
     @wp.kernel(module="unique", enable_backward=False, cuda_max_registers=HELPED_REGISTERS if helped else None)
     def coupled_response(
         lines: lines_type,
@@ -356,6 +389,7 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
         without contact are those with F = 0.
         """
         block, thread = wp.tid()
+
         lanes = wp.min(wp.block_dim(), COUPLED_LANES)
         warps = wp.block_dim() // lanes
         r = block * warps + thread // lanes
@@ -390,36 +424,38 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
         y = wp.float64(0.0)  # the contact point's displacement (m), modal variant
         free = wp.float64(0.0)  # this lane's part of the next y without force
         held = held_coefficients(modes, lane, lanes)  # this lane's first modes
+        a = wp.float64(0.0)
         ahead = PreparedSlot()  # the next step's prepared slot, read a step early (helped variant)
         ahead_written = bool(False)
+        line = PreparedLine()  # this step's linear_step (helped variant; none before the first prepared)
+        line[0] = wp.float64(wp.inf)
+        kept_force = wp.float64(0.0)  # this lane's step of the batch of `lanes` steps stored at once
+        kept_accel = wp.float64(0.0)
         for s in range(steps):
             F = wp.float64(0.0)
             d = d_w
             if wp.static(modal):
                 d = d_w - y
             if wp.static(helped):
-                k = s + PREPARED_AHEAD
-                built = k >= PREPARED_AHEAD + 2 and (k - PREPARED_AHEAD - 2) % PREPARED_STEPS == 0
-                if warps == 1 and built and k < steps:  # no helpers: prepare steps k, k + 1, ... here
-                    depths = awaited_depths(base, s)
-                    slots = wp.static(prepare)(lines, row, first + k, PREPARED_AHEAD, d, depths[1], depths[2], contact,
-                                               lane, lanes)
-                    if lane == 0:
-                        published_slots(base, k, slots)
-                slot = PreparedSlot()
-                if s >= PREPARED_AHEAD + 2:
-                    slot = ahead
-                    if not ahead_written:  # not yet written when read: wait for it
-                        slot = awaited_slot(base, s)
-                ahead, ahead_written = peeked_slot(base, s + 1)
+                if warps == 1:  # no helpers: prepare steps k, k + 1, ... here
+                    k = s + PREPARED_AHEAD
+                    if k >= PREPARED_AHEAD + 2 and (k - PREPARED_AHEAD - 2) % PREPARED_STEPS == 0 and k < steps:
+                        depths = awaited_depths(base, s)
+                        slots = wp.static(prepare)(lines, row, first + k, PREPARED_AHEAD, d, depths[1], depths[2],
+                                                   contact, lane, lanes)
+                        if lane == 0:
+                            published_slots(base, k, slots)
+                if s >= PREPARED_AHEAD + 2 and not ahead_written:  # not written when read: wait for it
+                    line = linear_step(awaited_slot(base, s), contact, F_N, inv_mass)
+                ahead, ahead_written = peeked_slot(base, s + 1)  # the next step's, off this step's chain
+                free_sum = wp.float64(0.0)
                 if wp.static(modal):
                     free_sum = warp_sum_float(free)  # not waiting on this step's force
-                    F, row = wp.static(prepared_force)(lines, row, slot, first + s, d, contact, lane, lanes)
+                F, a, row = prepared_step(lines, row, base, s, line, first + s, d, contact, F_N, inv_mass, lane, lanes)
+                if wp.static(modal):
                     u = F - F_N
                     y = free_sum + modes.gain * u
                     free, held = modal_step(modes, state, r, u, lane, lanes, held)
-                else:
-                    F, row = wp.static(prepared_force)(lines, row, slot, first + s, d, contact, lane, lanes)
             elif wp.static(modal):
                 part, row = wp.static(lane_force)(lines, row, first + s, d, contact, lane, lanes)
                 sums = warp_sum_float_pair(wp.vec2d(part, free))
@@ -430,10 +466,15 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
             else:
                 part, row = wp.static(lane_force)(lines, row, first + s, d, contact, lane, lanes)
                 F = warp_sum_float(part)
-            a = (F_N - F) * inv_mass
-            if lane == 0:
-                store_float(forces, s, F - force_offset)
-                store_float(accels, s, a)
+            if not wp.static(helped):
+                a = (F_N - F) * inv_mass
+            batch = s & (lanes - 1)  # every lane holds F and a: lane j keeps step j of the batch
+            if lane == batch:
+                kept_force = F - force_offset
+                kept_accel = a
+            if (batch == lanes - 1 or s == steps - 1) and lane <= batch:
+                store_float(forces, s - batch + lane, kept_force)
+                store_float(accels, s - batch + lane, kept_accel)
             if wp.static(forward_euler):
                 d_w += dt * v  # the old velocity (the thesis's scheme)
                 v += dt * a
@@ -447,5 +488,6 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
                     else:
                         published_depth(base, s + 1, d_w)
                 sync_warp()
+                line = linear_step(ahead, contact, F_N, inv_mass)  # the next step's, off this step's chain
 
     return coupled_response
