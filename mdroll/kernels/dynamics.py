@@ -43,8 +43,9 @@ INTEGRATORS = ("semi-implicit", "forward-euler")
 COUPLED_HELPERS = 3
 
 #: Registers a lane of the helped kernels may use: low enough for the blocks of a batch that
-#: leaves the GPU idle (:data:`COUPLED_HELPERS`) to fit its multiprocessors at once.
-HELPED_REGISTERS = None
+#: leaves the GPU idle (:data:`COUPLED_HELPERS`) to fit its multiprocessors at once, three blocks
+#: of four warps (65536 registers a multiprocessor / 384 lanes, in steps of 8).
+HELPED_REGISTERS = 168
 
 #: Steps ahead of the stepping warp that a step's force is prepared, from the indentation then
 #: and the two steps before; the first ``PREPARED_AHEAD + 2`` steps are summed directly.
@@ -468,13 +469,17 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
                 F = warp_sum_float(part)
             if not wp.static(helped):
                 a = (F_N - F) * inv_mass
-            batch = s & (lanes - 1)  # every lane holds F and a: lane j keeps step j of the batch
-            if lane == batch:
-                kept_force = F - force_offset
-                kept_accel = a
-            if (batch == lanes - 1 or s == steps - 1) and lane <= batch:
-                store_float(forces, s - batch + lane, kept_force)
-                store_float(accels, s - batch + lane, kept_accel)
+            if wp.static(helped):  # every lane holds F and a: lane j keeps step j of a batch of `lanes`
+                batch = s & (lanes - 1)
+                if lane == batch:
+                    kept_force = F - force_offset
+                    kept_accel = a
+                if (batch == lanes - 1 or s == steps - 1) and lane <= batch:
+                    store_float(forces, s - batch + lane, kept_force)
+                    store_float(accels, s - batch + lane, kept_accel)
+            elif lane == 0:
+                store_float(forces, s, F - force_offset)
+                store_float(accels, s, a)
             if wp.static(forward_euler):
                 d_w += dt * v  # the old velocity (the thesis's scheme)
                 v += dt * a
