@@ -56,9 +56,10 @@ PREPARED_AHEAD = 16
 #: A power of two up to 4 (:func:`warp_sums`; one byte a step in a 32-bit reduction).
 PREPARED_STEPS = 4
 
-#: Steps a block's shared ring holds (a power of two above PREPARED_AHEAD + 2): the
-#: indentations, each with its step (plus one, 0 for none), the prepared steps (8 words each)
-#: and the step each holds (plus one).
+#: Steps a block's shared ring holds (a power of two, at least PREPARED_AHEAD + PREPARED_STEPS:
+#: a build's last step is then never where the stepping warp has yet to read): the indentations,
+#: each with its step (plus one, 0 for none), the prepared steps (8 words each) and the step
+#: each holds (plus one).
 RING = 32
 RING_WORDS = 11 * RING
 
@@ -293,8 +294,9 @@ def coupled_dynamics(lines_type, lane_force, row_setup=row_index, forward_euler:
     ``prepared``: for an algorithm that can prepare a step's force ahead, the pair ``(prepare,
     prepared_force)``: ``prepare(lines, row, c, ahead: int, d, d1, d2, contact, lane, lanes) ->
     PreparedSlots``, the :data:`PREPARED_STEPS` steps with the wheel at c, c + 1, ... from the
-    indentations (m) ``ahead`` steps before the first and the two before that, and ``prepared_force(lines, row, slot, c, d, contact, lane, lanes) -> (F, row)``,
-    the whole F in every lane. ``helped``: the variant that uses them (:func:`with_helpers`).
+    indentations (m) ``ahead`` steps before the first and the two before that, and
+    ``prepared_force(lines, row, slot, c, d, contact, lane, lanes) -> (F, row)``, the whole F in
+    every lane. ``helped``: the variant that uses them (:func:`with_helpers`).
     One kernel per set of arguments, made once.
     """
     key = (lines_type, lane_force, row_setup, forward_euler, modal, prepared, helped)
@@ -383,14 +385,15 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
         (``row_setup``) and passed from step to step. The output y of the next step is the
         modes' free part plus ``gain`` times the force: the modes step beside the next step's
         force, off its chain. In the ``helped`` variant a block holds one realization: its
-        first warp steps it, each step's force prepared ahead (``prepare``) by the block's other
-        warps in turn, or by the first warp itself in a block of one warp, and read from the
-        block's shared ring (``prepared_force``); the stepping warp publishes each indentation
-        there. Writes ``force = F - force_offset`` (N) and ``accel = d_w''`` (m/s^2); steps
-        without contact are those with F = 0.
+        first warp steps it, the steps' forces prepared ahead (``prepare``, :data:`PREPARED_STEPS`
+        a build) by the block's other warps in turn, or by the first warp itself in a block of
+        one warp, and read from the block's shared ring a step early, so that a step's chain is
+        one operation from d to d'' (:func:`linear_step`; ``prepared_force`` outside the slot's
+        window); the stepping warp publishes each indentation there, and its lanes store the
+        force and acceleration 32 steps at once. Writes ``force = F - force_offset`` (N) and
+        ``accel = d_w''`` (m/s^2); steps without contact are those with F = 0.
         """
         block, thread = wp.tid()
-
         lanes = wp.min(wp.block_dim(), COUPLED_LANES)
         warps = wp.block_dim() // lanes
         r = block * warps + thread // lanes
@@ -467,8 +470,6 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
             else:
                 part, row = wp.static(lane_force)(lines, row, first + s, d, contact, lane, lanes)
                 F = warp_sum_float(part)
-            if not wp.static(helped):
-                a = (F_N - F) * inv_mass
             if wp.static(helped):  # every lane holds F and a: lane j keeps step j of a batch of `lanes`
                 batch = s & (lanes - 1)
                 if lane == batch:
@@ -477,9 +478,11 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
                 if (batch == lanes - 1 or s == steps - 1) and lane <= batch:
                     store_float(forces, s - batch + lane, kept_force)
                     store_float(accels, s - batch + lane, kept_accel)
-            elif lane == 0:
-                store_float(forces, s, F - force_offset)
-                store_float(accels, s, a)
+            else:
+                a = (F_N - F) * inv_mass
+                if lane == 0:
+                    store_float(forces, s, F - force_offset)
+                    store_float(accels, s, a)
             if wp.static(forward_euler):
                 d_w += dt * v  # the old velocity (the thesis's scheme)
                 v += dt * a

@@ -23,7 +23,7 @@ import warp as wp
 from .common import Contact, exact_double, reach_strict, settle_reach, sum_of_squares
 from .dynamics import PREPARED_STEPS, PreparedSlot, PreparedSlots, PreparedSums, coupled_dynamics, warp_sums
 from .intrinsics import (ballot, broadcast_float, broadcast_int, load_line, lowest_lane, prefetch_float_near,
-                         rough_sqrt, row_address, warp_sum_float, warp_sum_float_pair, warp_sum_int)
+                         rough_sqrt, row_address, warp_sum_float, warp_sum_int)
 
 #: Springs ahead of the wheel whose heights and prefix sums a coupled step prefetches: past the
 #: band's far edge (reach(d + max h), ~850 springs at the thesis's defaults), so that a line of
