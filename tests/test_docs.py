@@ -175,6 +175,9 @@ COMMANDS = {
     "python benchmarks/coupled_scaling.py --algorithms sweep --realizations 75 300 600 1200 4800 --dx 5e-6 --warps 4 "
     "--tracks rigid ballasted-soft-pad --helpers 3 0 --out coupled_scaling.json":
         ("options", "python benchmarks/coupled_scaling.py"),
+    "python benchmarks/coupled_scaling.py --algorithms sweep --realizations 75 300 600 1200 --dx 5e-6 --warps 4 "
+    "--tracks rigid ballasted-soft-pad --helpers 3 0 --out coupled_scaling.json":
+        ("options", "python benchmarks/coupled_scaling.py"),
     "python benchmarks/coupled_track.py --out coupled_track.json": ("options", "python benchmarks/coupled_track.py"),
     "ncu --kernel-name regex:coupled --launch-count 1 --section WarpStateStats --section SchedulerStats --section "
     "SourceCounters python benchmarks/coupled_scaling.py --steps-log2 14 --realizations 300 --warps 4 --tracks rigid "

@@ -43,21 +43,37 @@ INTEGRATORS = ("semi-implicit", "forward-euler")
 COUPLED_HELPERS = 3
 
 #: Registers a lane of the helped kernels may use: low enough for the blocks of a batch that
-#: leaves the GPU idle (:data:`COUPLED_HELPERS`) to fit its multiprocessors at once.
-HELPED_REGISTERS = None
+#: leaves the GPU idle (:data:`COUPLED_HELPERS`) to fit its multiprocessors at once, three blocks
+#: of four warps (65536 registers a multiprocessor / 384 lanes, in steps of 8).
+HELPED_REGISTERS = 168
 
 #: Steps ahead of the stepping warp that a step's force is prepared, from the indentation then
 #: and the two steps before; the first ``PREPARED_AHEAD + 2`` steps are summed directly.
-PREPARED_AHEAD = 8
+PREPARED_AHEAD = 16
 
-#: Steps a block's shared ring holds (a power of two above PREPARED_AHEAD + 2): the
-#: indentations, each with its step (plus one, 0 for none), the prepared steps (8 words each)
-#: and the step each holds (plus one).
-RING = 16
+#: Consecutive steps one build prepares (the algorithm's ``prepare`` returns their slots), each
+#: one step further ahead than the one before: a helper's builds start this many steps apart.
+#: A power of two up to 4 (:func:`warp_sums`; one byte a step in a 32-bit reduction).
+PREPARED_STEPS = 4
+
+#: Steps a block's shared ring holds (a power of two, at least PREPARED_AHEAD + PREPARED_STEPS:
+#: a build's last step is then never where the stepping warp has yet to read): the indentations,
+#: each with its step (plus one, 0 for none), the prepared steps (8 words each) and the step
+#: each holds (plus one).
+RING = 32
 RING_WORDS = 11 * RING
 
 #: A prepared step, as the algorithm's ``prepare`` returns it and its ``prepared_force`` reads it.
 PreparedSlot = wp.types.vector(length=8, dtype=wp.float64)
+
+#: A prepared step as the stepping warp uses it (:func:`linear_step`).
+PreparedLine = wp.types.vector(length=6, dtype=wp.float64)
+
+#: The prepared steps of one build, one a row (:data:`PREPARED_STEPS`).
+PreparedSlots = wp.types.matrix(shape=(PREPARED_STEPS, 8), dtype=wp.float64)
+
+#: One float64 for each step of a build.
+PreparedSums = wp.types.vector(length=PREPARED_STEPS, dtype=wp.float64)
 
 # (lines_type, lane_force, row_setup) of each kernel made, and every kernel made, by its arguments
 _MADE_FROM: dict = {}
@@ -136,6 +152,45 @@ def modal_step(modes: Modes, state: wp.array2d(dtype=wp.vec2d), r: int, u: wp.fl
     return free, held
 
 
+@wp.func_native("""
+#if defined(__CUDA_ARCH__)
+constexpr int P = sizeof(values.c) / sizeof(values.c[0]);
+const unsigned lane = threadIdx.x & 31u;
+double v[P];
+#pragma unroll
+for (int i = 0; i < P; ++i) v[i] = values.c[i];
+int mask = 16;
+#pragma unroll
+for (int width = P; width > 1; width >>= 1, mask >>= 1) {
+    const bool upper = (lane & mask) != 0u;
+#pragma unroll
+    for (int i = 0; i < width / 2; ++i) {
+        const double send = upper ? v[i] : v[i + width / 2];
+        const double keep = upper ? v[i + width / 2] : v[i];
+        v[i] = keep + __shfl_xor_sync(0xffffffffu, send, mask);
+    }
+}
+#pragma unroll
+for (; mask > 0; mask >>= 1) v[0] += __shfl_xor_sync(0xffffffffu, v[0], mask);
+#pragma unroll
+for (int i = 0; i < P; ++i) {
+    int source = 0, level = 16;
+#pragma unroll
+    for (int width = P; width > 1; width >>= 1, level >>= 1) source += (i & (width / 2)) ? level : 0;
+    values.c[i] = __shfl_sync(0xffffffffu, v[0], source);
+}
+#endif
+return values;
+""")
+def warp_sums(values: PreparedSums) -> PreparedSums:
+    """Each of the :data:`PREPARED_STEPS` float64 summed over the 32 lanes of the warp, in every
+    lane (CUDA; the values themselves on the CPU, where a block is one lane; every lane of the
+    warp must call): the first levels of the butterfly halve the values a lane carries (a lane
+    sends the half its partner keeps), the rest add one, and each sum is broadcast from a lane
+    that holds it: a shuffle and an add a level, and one a sum to gather."""
+    ...
+
+
 @wp.func_native("""return (uint64_t)(&ring.data(0));""")
 def ring_address(ring: wp.tile(dtype=wp.float64, shape=(RING_WORDS,), storage="shared")) -> wp.uint64:
     """The address of a block's shared ring."""
@@ -143,13 +198,16 @@ def ring_address(ring: wp.tile(dtype=wp.float64, shape=(RING_WORDS,), storage="s
 
 
 @wp.func
-def published_slot(base: wp.uint64, k: int, slot: PreparedSlot):
-    """Writes the prepared step k into the ring, then (after a fence) the step it holds."""
-    at = k & (RING - 1)
-    for i in range(8):
-        set_shared_volatile(base, 2 * RING + 8 * at + i, slot[i])
+def published_slots(base: wp.uint64, k: int, slots: PreparedSlots):
+    """Writes the prepared steps k, k + 1, ... of a build into the ring, then (after a fence) the
+    steps they hold."""
+    for j in range(PREPARED_STEPS):
+        at = (k + j) & (RING - 1)
+        for i in range(8):
+            set_shared_volatile(base, 2 * RING + 8 * at + i, slots[j, i])
     fence_block()
-    set_shared_volatile(base, 10 * RING + at, wp.float64(k + 1))
+    for j in range(PREPARED_STEPS):
+        set_shared_volatile(base, 10 * RING + ((k + j) & (RING - 1)), wp.float64(k + j + 1))
 
 
 @wp.func
@@ -166,19 +224,51 @@ def awaited_slot(base: wp.uint64, s: int) -> PreparedSlot:
 
 
 @wp.func
+def linear_step(slot: PreparedSlot, contact: Contact, F_N: wp.float64, inv_mass: wp.float64) -> PreparedLine:
+    """A prepared step's force and the wheel's acceleration as linear functions of d where they
+    are (the slot ready, no spring open): ``(lo, hi, k N, k T, k N / m, (F_N + k T) / m)`` for F =
+    k N d - k T and d'' = (F_N + k T) / m - (k N / m) d over ``lo <= d <= hi``, an empty window
+    (lo infinite) where they are not; worked out before the step, whose chain is then one
+    operation from d to d''."""
+    stiffness = contact.k_spring * slot[3]
+    offset = contact.k_spring * slot[4]
+    linear = slot[2] > wp.float64(0.0) and slot[5] == wp.float64(wp.inf)
+    return PreparedLine(wp.where(linear, slot[0], wp.float64(wp.inf)), slot[1], stiffness, offset,
+                        stiffness * inv_mass, (F_N + offset) * inv_mass)
+
+
+@wp.func
+def peeked_slot(base: wp.uint64, s: int):
+    """The prepared step s as the ring holds it now, and whether a helper has written it (its step
+    read first, then its words): read the step before it is needed, so that its loads wait on
+    nothing and stand in no step's chain."""
+    at = s & (RING - 1)
+    written = shared_volatile(base, 10 * RING + at) == wp.float64(s + 1)
+    slot = PreparedSlot()
+    for i in range(6):  # those that linear_step reads
+        slot[i] = shared_volatile(base, 2 * RING + 8 * at + i)
+    return slot, written
+
+
+@wp.func
 def published_depth(base: wp.uint64, s: int, d: wp.float64):
     """Writes step s's indentation d (m) into the ring with its step (plus one), in one write."""
     set_shared_pair(base, s & (RING - 1), d, wp.float64(s + 1))
 
 
 @wp.func
-def awaited_depth(base: wp.uint64, s: int) -> wp.float64:
-    """Step s's indentation (m) from the ring, once the stepping warp has published it."""
-    pair = shared_pair(base, s & (RING - 1))
-    while pair[1] != wp.float64(s + 1):
+def awaited_depths(base: wp.uint64, s: int) -> wp.vec3d:
+    """The indentations (m) of steps s, s - 1 and s - 2 from the ring, once the stepping warp has
+    published them (the three read together)."""
+    now = shared_pair(base, s & (RING - 1))
+    before = shared_pair(base, (s - 1) & (RING - 1))
+    earlier = shared_pair(base, (s - 2) & (RING - 1))
+    while now[1] != wp.float64(s + 1) or before[1] != wp.float64(s) or earlier[1] != wp.float64(s - 1):
         backoff()
-        pair = shared_pair(base, s & (RING - 1))
-    return pair[0]
+        now = shared_pair(base, s & (RING - 1))
+        before = shared_pair(base, (s - 1) & (RING - 1))
+        earlier = shared_pair(base, (s - 2) & (RING - 1))
+    return wp.vec3d(now[0], before[0], earlier[0])
 
 
 @wp.func
@@ -203,9 +293,10 @@ def coupled_dynamics(lines_type, lane_force, row_setup=row_index, forward_euler:
 
     ``prepared``: for an algorithm that can prepare a step's force ahead, the pair ``(prepare,
     prepared_force)``: ``prepare(lines, row, c, ahead: int, d, d1, d2, contact, lane, lanes) ->
-    PreparedSlot`` from the indentations (m) ``ahead`` steps before the step and the two before
-    that, and ``prepared_force(lines, row, slot, c, d, contact, lane, lanes) -> (F, row)``,
-    the whole F in every lane. ``helped``: the variant that uses them (:func:`with_helpers`).
+    PreparedSlots``, the :data:`PREPARED_STEPS` steps with the wheel at c, c + 1, ... from the
+    indentations (m) ``ahead`` steps before the first and the two before that, and
+    ``prepared_force(lines, row, slot, c, d, contact, lane, lanes) -> (F, row)``, the whole F in
+    every lane. ``helped``: the variant that uses them (:func:`with_helpers`).
     One kernel per set of arguments, made once.
     """
     key = (lines_type, lane_force, row_setup, forward_euler, modal, prepared, helped)
@@ -246,6 +337,22 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
                     helped: bool) -> wp.Kernel:
     prepare, prepared_force = prepared if helped else (None, None)
 
+    @wp.func
+    def prepared_step(lines: lines_type, row: Any, base: wp.uint64, s: int, line: PreparedLine, c: int,
+                      d: wp.float64, contact: Contact, F_N: wp.float64, inv_mass: wp.float64, lane: int,
+                      lanes: int):
+        """F (N) and the wheel's acceleration (m/s^2) at indentation d (m) of prepared step s (its
+        slot in the ring) and the row for the next step: with d in the window of its
+        :func:`linear_step`, one operation from d to the acceleration; else the algorithm's
+        ``prepared_force`` of the slot."""
+        if line[0] <= d and d <= line[1]:
+            return line[2] * d - line[3], line[5] - line[4] * d, row
+        slot = PreparedSlot()  # none ready before the first prepared step: the band summed directly
+        if s >= PREPARED_AHEAD + 2:
+            slot = awaited_slot(base, s)
+        F, moved = wp.static(prepared_force)(lines, row, slot, c, d, contact, lane, lanes)
+        return F, (F_N - F) * inv_mass, moved
+
     @wp.kernel(module="unique", enable_backward=False, cuda_max_registers=HELPED_REGISTERS if helped else None)
     def coupled_response(
         lines: lines_type,
@@ -278,11 +385,13 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
         (``row_setup``) and passed from step to step. The output y of the next step is the
         modes' free part plus ``gain`` times the force: the modes step beside the next step's
         force, off its chain. In the ``helped`` variant a block holds one realization: its
-        first warp steps it, each step's force prepared ahead (``prepare``) by the block's other
-        warps in turn, or by the first warp itself in a block of one warp, and read from the
-        block's shared ring (``prepared_force``); the stepping warp publishes each indentation
-        there. Writes ``force = F - force_offset`` (N) and ``accel = d_w''`` (m/s^2); steps
-        without contact are those with F = 0.
+        first warp steps it, the steps' forces prepared ahead (``prepare``, :data:`PREPARED_STEPS`
+        a build) by the block's other warps in turn, or by the first warp itself in a block of
+        one warp, and read from the block's shared ring a step early, so that a step's chain is
+        one operation from d to d'' (:func:`linear_step`; ``prepared_force`` outside the slot's
+        window); the stepping warp publishes each indentation there, and its lanes store the
+        force and acceleration 32 steps at once. Writes ``force = F - force_offset`` (N) and
+        ``accel = d_w''`` (m/s^2); steps without contact are those with F = 0.
         """
         block, thread = wp.tid()
         lanes = wp.min(wp.block_dim(), COUPLED_LANES)
@@ -302,16 +411,15 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
                 published_depth(base, 0, d_start)
             sync_block()
             helper = thread // lanes
-            if helper > 0:  # prepare steps helper - 1, helper - 1 + (warps - 1), ... past the first
-                k = PREPARED_AHEAD + 1 + helper
+            if helper > 0:  # prepare the steps past the first, PREPARED_STEPS a build, the helpers in turn
+                k = PREPARED_AHEAD + 2 + PREPARED_STEPS * (helper - 1)
                 while k < steps:
-                    d = awaited_depth(base, k - PREPARED_AHEAD)
-                    slot = wp.static(prepare)(lines, row, first + k, PREPARED_AHEAD, d,
-                                              awaited_depth(base, k - PREPARED_AHEAD - 1),
-                                              awaited_depth(base, k - PREPARED_AHEAD - 2), contact, lane, lanes)
+                    depths = awaited_depths(base, k - PREPARED_AHEAD)
+                    slots = wp.static(prepare)(lines, row, first + k, PREPARED_AHEAD, depths[0], depths[1], depths[2],
+                                               contact, lane, lanes)
                     if lane == 0:
-                        published_slot(base, k, slot)
-                    k += warps - 1
+                        published_slots(base, k, slots)
+                    k += PREPARED_STEPS * (warps - 1)
                 return
         forces = row_address(force, r)
         accels = row_address(accel, r)
@@ -320,29 +428,38 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
         y = wp.float64(0.0)  # the contact point's displacement (m), modal variant
         free = wp.float64(0.0)  # this lane's part of the next y without force
         held = held_coefficients(modes, lane, lanes)  # this lane's first modes
+        a = wp.float64(0.0)
+        ahead = PreparedSlot()  # the next step's prepared slot, read a step early (helped variant)
+        ahead_written = bool(False)
+        line = PreparedLine()  # this step's linear_step (helped variant; none before the first prepared)
+        line[0] = wp.float64(wp.inf)
+        kept_force = wp.float64(0.0)  # this lane's step of the batch of `lanes` steps stored at once
+        kept_accel = wp.float64(0.0)
         for s in range(steps):
             F = wp.float64(0.0)
             d = d_w
             if wp.static(modal):
                 d = d_w - y
             if wp.static(helped):
-                k = s + PREPARED_AHEAD
-                if warps == 1 and k >= PREPARED_AHEAD + 2 and k < steps:  # no helpers: prepare step k here
-                    slot = wp.static(prepare)(lines, row, first + k, PREPARED_AHEAD, d, awaited_depth(base, s - 1),
-                                              awaited_depth(base, s - 2), contact, lane, lanes)
-                    if lane == 0:
-                        published_slot(base, k, slot)
-                slot = PreparedSlot()
-                if s >= PREPARED_AHEAD + 2:
-                    slot = awaited_slot(base, s)
+                if warps == 1:  # no helpers: prepare steps k, k + 1, ... here
+                    k = s + PREPARED_AHEAD
+                    if k >= PREPARED_AHEAD + 2 and (k - PREPARED_AHEAD - 2) % PREPARED_STEPS == 0 and k < steps:
+                        depths = awaited_depths(base, s)
+                        slots = wp.static(prepare)(lines, row, first + k, PREPARED_AHEAD, d, depths[1], depths[2],
+                                                   contact, lane, lanes)
+                        if lane == 0:
+                            published_slots(base, k, slots)
+                if s >= PREPARED_AHEAD + 2 and not ahead_written:  # not written when read: wait for it
+                    line = linear_step(awaited_slot(base, s), contact, F_N, inv_mass)
+                ahead, ahead_written = peeked_slot(base, s + 1)  # the next step's, off this step's chain
+                free_sum = wp.float64(0.0)
                 if wp.static(modal):
                     free_sum = warp_sum_float(free)  # not waiting on this step's force
-                    F, row = wp.static(prepared_force)(lines, row, slot, first + s, d, contact, lane, lanes)
+                F, a, row = prepared_step(lines, row, base, s, line, first + s, d, contact, F_N, inv_mass, lane, lanes)
+                if wp.static(modal):
                     u = F - F_N
                     y = free_sum + modes.gain * u
                     free, held = modal_step(modes, state, r, u, lane, lanes, held)
-                else:
-                    F, row = wp.static(prepared_force)(lines, row, slot, first + s, d, contact, lane, lanes)
             elif wp.static(modal):
                 part, row = wp.static(lane_force)(lines, row, first + s, d, contact, lane, lanes)
                 sums = warp_sum_float_pair(wp.vec2d(part, free))
@@ -353,10 +470,19 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
             else:
                 part, row = wp.static(lane_force)(lines, row, first + s, d, contact, lane, lanes)
                 F = warp_sum_float(part)
-            a = (F_N - F) * inv_mass
-            if lane == 0:
-                store_float(forces, s, F - force_offset)
-                store_float(accels, s, a)
+            if wp.static(helped):  # every lane holds F and a: lane j keeps step j of a batch of `lanes`
+                batch = s & (lanes - 1)
+                if lane == batch:
+                    kept_force = F - force_offset
+                    kept_accel = a
+                if (batch == lanes - 1 or s == steps - 1) and lane <= batch:
+                    store_float(forces, s - batch + lane, kept_force)
+                    store_float(accels, s - batch + lane, kept_accel)
+            else:
+                a = (F_N - F) * inv_mass
+                if lane == 0:
+                    store_float(forces, s, F - force_offset)
+                    store_float(accels, s, a)
             if wp.static(forward_euler):
                 d_w += dt * v  # the old velocity (the thesis's scheme)
                 v += dt * a
@@ -370,5 +496,6 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
                     else:
                         published_depth(base, s + 1, d_w)
                 sync_warp()
+                line = linear_step(ahead, contact, F_N, inv_mass)  # the next step's, off this step's chain
 
     return coupled_response

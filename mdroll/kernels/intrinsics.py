@@ -378,7 +378,8 @@ def load_line(base: wp.uint64, i: int) -> wp.float64:
 
 @wp.func_native("""
 #if defined(__CUDA_ARCH__)
-asm volatile("st.volatile.v2.f64 [%0], {%1, %2};" :: "l"(((double*)base) + 2 * i), "d"(first), "d"(second) : "memory");
+const unsigned at = (unsigned)__cvta_generic_to_shared(((double*)base) + 2 * i);
+asm volatile("st.volatile.shared.v2.f64 [%0], {%1, %2};" :: "r"(at), "d"(first), "d"(second) : "memory");
 #else
 ((volatile double*)base)[2 * i] = first;
 ((volatile double*)base)[2 * i + 1] = second;
@@ -393,7 +394,8 @@ def set_shared_pair(base: wp.uint64, i: int, first: wp.float64, second: wp.float
 @wp.func_native("""
 #if defined(__CUDA_ARCH__)
 double first, second;
-asm volatile("ld.volatile.v2.f64 {%0, %1}, [%2];" : "=d"(first), "=d"(second) : "l"(((double*)base) + 2 * i) : "memory");
+const unsigned at = (unsigned)__cvta_generic_to_shared(((double*)base) + 2 * i);
+asm volatile("ld.volatile.shared.v2.f64 {%0, %1}, [%2];" : "=d"(first), "=d"(second) : "r"(at) : "memory");
 return wp::vec2d(first, second);
 #else
 return wp::vec2d(((volatile double*)base)[2 * i], ((volatile double*)base)[2 * i + 1]);

@@ -21,7 +21,7 @@ window.
 import warp as wp
 
 from .common import Contact, exact_double, reach_strict, settle_reach, sum_of_squares
-from .dynamics import PreparedSlot, coupled_dynamics
+from .dynamics import PREPARED_STEPS, PreparedSlot, PreparedSlots, PreparedSums, coupled_dynamics, warp_sums
 from .intrinsics import (ballot, broadcast_float, broadcast_int, load_line, lowest_lane, prefetch_float_near,
                          rough_sqrt, row_address, warp_sum_float, warp_sum_int)
 
@@ -135,8 +135,9 @@ def settled_reaches(row: BandRow, d: wp.float64, curvature: wp.float64) -> BandR
 @wp.func
 def prefetch_ahead(row: BandRow, c: int, lane: int):
     """Lane 0 asks the L1 cache for the height and the prefix sum :data:`PREFETCH_AHEAD`
-    springs ahead of spring c, every 16th spring (a cache line of each); nothing on the CPU."""
-    if lane == 0 and (c & 15) == 0:
+    springs ahead of spring c, at springs 0 and 1 of every 16 (a cache line of each; a build of
+    two steps, c of one parity, meets one of them); nothing on the CPU."""
+    if lane == 0 and (c & 14) == 0:
         i = wp.min(c + PREFETCH_AHEAD, row.n - 1)
         prefetch_float_near(row.h, i)
         prefetch_float_near(row.prefix, i)
@@ -267,100 +268,177 @@ def window_reach(level: wp.float64, curvature: wp.float64, inverse: wp.float32) 
 
 
 @wp.func
-def threshold(row: BandRow, i: int, end: int, c: int, curvature: wp.float64) -> wp.float64:
-    """Spring i's threshold ``curvature (i - c)^2 - h_i`` (m), the indentation above which it
-    touches with the wheel at spring c; infinite for ``i >= end`` (past its band)."""
-    m = exact_double(wp.abs(i - c))
-    height = load_line(row.h, wp.min(i, row.n - 1))
-    return wp.where(i < end, curvature * m * m - height, wp.float64(wp.inf))
+def extrapolated(d: wp.float64, rise: wp.float64, bend: wp.float64, ahead: int, spread: wp.float64) -> wp.vec2d:
+    """The window ``(lo, hi)`` (m) of the indentation ``ahead`` steps after d: d with its last change
+    ``rise`` and that change's change ``bend`` carried on, twice as wide a side as they move it,
+    and ``spread`` wider."""
+    steps = wp.float64(ahead)
+    curve = steps * (steps + wp.float64(1.0)) * wp.float64(0.5)
+    centre = d + steps * rise + curve * bend
+    half = wp.float64(2.0) * (steps * wp.abs(rise) + curve * wp.abs(bend)) + spread
+    return wp.vec2d(centre - half, centre + half)
 
 
 @wp.struct
-class LaneSum:
-    """One lane's part of a window's classification (:func:`classified`): the count and sum of
-    thresholds (m) of its springs in contact over the whole window (threshold below it), and
-    of those whose threshold lies in it (``open``) the first two."""
+class BuildScan:
+    """The springs that a build of :data:`~mdroll.kernels.dynamics.PREPARED_STEPS` steps, the wheel
+    at c, c + 1, ... (:func:`prepared_sum`), classifies, from the reaches ``core`` and ``outer`` of
+    its window: every spring at an offset ``core < |l - c - j| <= outer`` from one of the steps'
+    wheel positions c + j, scanned as springs ``left <= l < left_end`` (offsets ``-outer`` up to
+    those of the last step's core) and ``right <= l < right_end`` (from past the first step's
+    core and the left scan to ``outer`` past the last step's wheel), on the row."""
 
-    count: int
-    total: wp.float64
-    open: int
-    first: wp.float64
-    second: wp.float64
+    c: int
+    core: int
+    outer: int
+    right: int
+    right_end: int
+    left: int
+    left_end: int
 
 
 @wp.func
-def classified(part: LaneSum, t: wp.float64, lo: wp.float64, hi: wp.float64) -> LaneSum:
-    """The lane's part with one more spring of threshold t (m), against the window [lo, hi]."""
-    sure = t < lo
-    open_here = (not sure) and t < hi
-    part.count += wp.where(sure, 1, 0)
-    part.total += wp.where(sure, t, wp.float64(0.0))
-    part.second = wp.where(open_here and part.open == 1, t, part.second)
-    part.first = wp.where(open_here and part.open == 0, t, part.first)
-    part.open += wp.where(open_here, 1, 0)
-    return part
+def build_scan(row: BandRow, c: int, core: int, outer: int) -> BuildScan:
+    """The scans of a build with the wheel at c first (:class:`BuildScan`)."""
+    inner = wp.max(core, 0)
+    last = PREPARED_STEPS - 1
+    scan = BuildScan()
+    scan.c = c
+    scan.core = core
+    scan.outer = outer
+    scan.left = wp.max(c - outer, 0)
+    scan.left_end = wp.min(c + last - inner, row.n)
+    scan.right = wp.max(c + wp.max(inner + 1, last - inner), 0)
+    scan.right_end = wp.min(c + outer + last + 1, row.n)
+    return scan
+
+
+@wp.func
+def tallied(row: BandRow, scan: BuildScan, i: int, end: int, offset: wp.float64, lo: wp.float64, hi: wp.float64,
+            curvature: wp.float64, counts: int, totals: PreparedSums, opened: bool):
+    """The lane's tallies with spring i (``i < end``: on the scan) at the float64 ``offset = i -
+    c``, classified for each step j of the build by its threshold ``curvature (i - c - j)^2 -
+    h_i`` (m), the indentation above which it touches: where the spring is in step j's band, in
+    contact over the whole window [lo, hi] (threshold below it: counted in byte j of ``counts``,
+    summed in ``totals[j]``) or open (threshold in it: ``opened``)."""
+    height = load_line(row.h, wp.min(i, row.n - 1))
+    inside = i < end
+    root = offset  # i - c - j, float64
+    shift = i - scan.c  # the same, int
+    for j in range(PREPARED_STEPS):
+        t = curvature * root * root - height
+        away = wp.abs(shift)
+        member = inside and away > scan.core and away <= scan.outer
+        sure = member and t < lo
+        counts += wp.where(sure, int(1) << (8 * j), int(0))
+        totals[j] = totals[j] + wp.where(sure, t, wp.float64(0.0))
+        opened = opened or (member and lo <= t and t < hi)
+        root -= wp.float64(1.0)
+        shift -= 1
+    return counts, totals, opened
+
+
+@wp.func
+def open_thresholds(row: BandRow, scan: BuildScan, j: int, slots: int, lo: wp.float64, hi: wp.float64,
+                    curvature: wp.float64, lane: int, lanes: int) -> wp.vec3d:
+    """How many springs of step j's band have their threshold (m) in the window ``[lo, hi)``, and
+    the thresholds of the first two (infinite where fewer): each lane's springs scanned again,
+    its first two kept, then those of the lowest lanes with any (a reduction, a ballot and
+    shuffles; every lane of the warp must call)."""
+    count = int(0)
+    first = wp.float64(wp.inf)
+    second = wp.float64(wp.inf)
+    for k in range(2 * slots):
+        i = wp.where(k % 2 == 0, scan.right, scan.left) + lane + (k // 2) * lanes
+        end = wp.where(k % 2 == 0, scan.right_end, scan.left_end)
+        away = wp.abs(i - scan.c - j)
+        root = exact_double(away)
+        t = curvature * root * root - load_line(row.h, wp.min(i, row.n - 1))
+        open_here = i < end and away > scan.core and away <= scan.outer and lo <= t and t < hi
+        second = wp.where(open_here and count == 1, t, second)
+        first = wp.where(open_here and count == 0, t, first)
+        count += wp.where(open_here, 1, 0)
+    lanes_open = ballot(count > 0)
+    first_lane = lowest_lane(lanes_open)
+    u1 = broadcast_float(first, first_lane)
+    u2 = wp.where(broadcast_int(count, first_lane) >= 2, broadcast_float(second, first_lane),
+                  broadcast_float(first, lowest_lane(lanes_open & (lanes_open - 1))))
+    return wp.vec3d(wp.float64(warp_sum_int(count)), u1, u2)
+
+
+@wp.func
+def core_thresholds(row: BandRow, c: int, core: int, curvature: wp.float64) -> wp.vec2d:
+    """The count and the sum of thresholds (m) of the springs ``|l - c| <= core`` of the row, in
+    closed form from the prefix sums (eq 18-20)."""
+    i = wp.min(wp.max(c - core, 0), row.n)
+    j = wp.max(wp.min(c + core + 1, row.n), i)
+    squares = curvature * sum_of_squares(i - c, j - 1 - c)
+    total = wp.where(j > i, squares - (load_line(row.prefix, j) - load_line(row.prefix, i)), wp.float64(0.0))
+    return wp.vec2d(wp.float64(j - i), total)
 
 
 @wp.func
 def prepared_sum(lines: SweepLines, band: BandRow, c: int, ahead: int, d: wp.float64, d1: wp.float64,
-                 d2: wp.float64, contact: Contact, lane: int, lanes: int) -> PreparedSlot:
-    """The force of the step with the wheel at spring c, prepared ``ahead`` steps before it from
-    the indentations d, d1, d2 (m) of that step and the two before: ``(lo, hi, ready, N, T, u1,
-    u2, 0)``. The window [lo, hi] of indentations: d and its last two changes extrapolated,
-    twice as wide as the extrapolation moves d (at least 1e-12 of the row's roughness). Over
-    it the core ``|l - c| <= reach(lo + min h)`` is in contact (count and sum of thresholds in
-    closed form from the prefix sums), and of the bands out to ``reach(hi + max h)`` each lane
-    classifies its springs, adjacent lanes on adjacent springs (:func:`classified`): in contact
-    over the whole window, open, or out. The warp adds the counts and sums up (one integer
-    reduction, one float64 butterfly) into the count N and the sum T (m) of the thresholds of
-    the springs in contact, and a ballot finds the open ones' thresholds u1, u2 (infinite if
-    none). ``ready`` (1 or 0): the bands fit the lanes and at most two springs are open; then,
-    for any d in the window, F = k (N d - T + max(d - u1, 0) + max(d - u2, 0))."""
+                 d2: wp.float64, contact: Contact, lane: int, lanes: int) -> PreparedSlots:
+    """The forces of the :data:`~mdroll.kernels.dynamics.PREPARED_STEPS` steps with the wheel at
+    springs c, c + 1, ..., prepared ``ahead``, ``ahead + 1``, ... steps before them from the
+    indentations d, d1, d2 (m) of the step ``ahead`` before c and the two before it, in one build
+    from the same loads: a slot ``(lo, hi, ready, N, T, u1, u2, 0)`` each (lane 0's are whole).
+    The window [lo, hi] of indentations covers all the steps' (:func:`extrapolated`, at least
+    1e-12 of the row's roughness a side). Over it the core ``|l - c - j| <= reach(lo + min h)``
+    of step j is in contact (count and sum of thresholds in closed form from the prefix sums),
+    and of the bands out to ``reach(hi + max h)`` each lane classifies its springs for every step
+    (:class:`BuildScan`, :func:`tallied`), adjacent lanes on adjacent springs: in contact over
+    the whole window (threshold below it), open (in it), or out. The warp adds up the counts
+    (one integer reduction for all steps) and the sums of thresholds (:func:`~mdroll.kernels.dynamics.warp_sums`) into
+    each step's count N and sum T (m) of the thresholds of the springs in contact; only where a
+    spring is open (one ballot) do further reductions find how many and the first two's
+    thresholds u1, u2 (:func:`open_thresholds`; infinite where none). ``ready`` (1 or 0): the
+    bands fit the lanes and at most two springs are open; then, for any d in the window, F = k
+    (N d - T + max(d - u1, 0) + max(d - u2, 0))."""
     curvature = contact.curvature
     inverse = wp.float32(1.0) / wp.float32(curvature)
     prefetch_ahead(band, c, lane)
     rise = d - d1
     bend = rise - (d1 - d2)
-    steps = wp.float64(ahead)
-    curve = steps * (steps + wp.float64(1.0)) * wp.float64(0.5)
-    centre = d + steps * rise + curve * bend
-    half = wp.float64(2.0) * (steps * wp.abs(rise) + curve * wp.abs(bend)) + wp.float64(1e-12) * (
-        band.high - band.low)
-    lo = centre - half
-    hi = centre + half
+    spread = wp.float64(1e-12) * (band.high - band.low)
+    near = extrapolated(d, rise, bend, ahead, spread)
+    far = extrapolated(d, rise, bend, ahead + PREPARED_STEPS - 1, spread)
+    lo = wp.where(near[0] < far[0], near[0], far[0])
+    hi = wp.where(near[1] > far[1], near[1], far[1])
     core = window_reach(lo + band.low, curvature, inverse)
-    outer = window_reach(hi + band.high, curvature, inverse)
-    right = wp.max(c + core + 1, 0)
-    right_end = wp.min(c + outer + 1, band.n)
-    left = wp.max(c - outer, 0)
-    left_end = wp.min(c - wp.max(core, 0), band.n)
-    widest = wp.max(right_end - right, left_end - left)
+    scan = build_scan(band, c, core, window_reach(hi + band.high, curvature, inverse))
+    widest = wp.max(scan.right_end - scan.right, scan.left_end - scan.left)
     slots = lane_slots((widest + lanes - 1) // lanes)
-    i = wp.min(wp.max(c - core, 0), band.n)
-    j = wp.max(wp.min(c + core + 1, band.n), i)
-    squares = curvature * sum_of_squares(i - c, j - 1 - c)
-    core_sum = wp.where(j > i, squares - (load_line(band.prefix, j) - load_line(band.prefix, i)), wp.float64(0.0))
-    part = LaneSum()
-    part.count = 0
-    part.total = wp.float64(0.0)
-    part.open = 0
-    part.first = wp.float64(wp.inf)
-    part.second = wp.float64(wp.inf)
+    counts = int(0)  # byte j: step j's springs in contact over the window
+    totals = PreparedSums()
+    opened = bool(False)
+    right_offset = wp.float64(scan.right + lane - c)  # grows by `lanes` a slot
+    left_offset = wp.float64(scan.left + lane - c)
+    stride = wp.float64(lanes)
     for k in range(slots):
         step = lane + k * lanes
-        part = classified(part, threshold(band, right + step, right_end, c, curvature), lo, hi)
-        part = classified(part, threshold(band, left + step, left_end, c, curvature), lo, hi)
-    counts = warp_sum_int(part.count + part.open * 65536)
-    opened = counts >> 16
-    lanes_open = ballot(part.open > 0)
-    first_lane = lowest_lane(lanes_open)
-    u1 = broadcast_float(part.first, first_lane)
-    u2 = wp.where(broadcast_int(part.open, first_lane) >= 2, broadcast_float(part.second, first_lane),
-                  broadcast_float(part.first, lowest_lane(lanes_open & (lanes_open - 1))))
-    ready = wp.where(widest <= slots * lanes and opened <= 2, wp.float64(1.0), wp.float64(0.0))
+        counts, totals, opened = tallied(band, scan, scan.right + step, scan.right_end, right_offset, lo, hi,
+                                         curvature, counts, totals, opened)
+        counts, totals, opened = tallied(band, scan, scan.left + step, scan.left_end, left_offset, lo, hi,
+                                         curvature, counts, totals, opened)
+        right_offset += stride
+        left_offset += stride
+    counts = warp_sum_int(counts)
+    totals = warp_sums(totals)
+    any_open = ballot(opened) != 0
+    zero = wp.float64(0.0)
     infinite = wp.float64(wp.inf)
-    return PreparedSlot(lo, hi, ready, wp.float64(j - i + (counts & 65535)), core_sum + warp_sum_float(part.total),
-                        wp.where(opened >= 1, u1, infinite), wp.where(opened >= 2, u2, infinite), wp.float64(0.0))
+    built = PreparedSlots()
+    for j in range(PREPARED_STEPS):
+        found = wp.vec3d(zero, infinite, infinite)
+        if any_open:
+            found = open_thresholds(band, scan, j, slots, lo, hi, curvature, lane, lanes)
+        whole = core_thresholds(band, c + j, core, curvature)
+        ready = wp.where(widest <= slots * lanes and found[0] <= wp.float64(2.0), wp.float64(1.0), zero)
+        built[j] = PreparedSlot(lo, hi, ready, whole[0] + wp.float64((counts >> (8 * j)) & 255), whole[1] + totals[j],
+                                found[1], wp.where(found[0] >= wp.float64(2.0), found[2], infinite), zero)
+    return built
 
 
 @wp.func
@@ -372,13 +450,12 @@ def prepared_force(lines: SweepLines, row: BandRow, prepared: PreparedSlot, c: i
     with no load and no reduction; else (or not ready) the band summed directly
     (:func:`lane_band_force`, its reaches carried in the row) and the lanes added up."""
     zero = wp.float64(0.0)
-    F = contact.k_spring * (prepared[3] * d - prepared[4] + wp.max(d - prepared[5], zero) + wp.max(d - prepared[6],
-                                                                                                    zero))
-    moved = row
-    if not (prepared[2] > zero and prepared[0] <= d and d <= prepared[1]):
-        part, moved = lane_band_force(row, c, d, contact, lane, lanes)
-        F = warp_sum_float(part)
-    return F, moved
+    if prepared[2] > zero and prepared[0] <= d and d <= prepared[1]:
+        first = wp.where(d > prepared[5], d - prepared[5], zero)
+        second = wp.where(d > prepared[6], d - prepared[6], zero)
+        return contact.k_spring * (prepared[3] * d - prepared[4] + first + second), row
+    part, moved = lane_band_force(row, c, d, contact, lane, lanes)
+    return warp_sum_float(part), moved
 
 
 @wp.func
