@@ -31,10 +31,10 @@ the sleeper-passing frequency v/d and its harmonics n v/d.
 **Assumption** (quasi-static): the load moves slowly against the track's waves, so that the
 rail's deflection under it follows the static shape of the stated, elastic stiffnesses. r_p is
 that elastic limit, not the slow limit of the dynamic track: neither damping model tends to the
-elastic stiffness at low frequency (the causal moduli soften below ``track.damping_frequency``
-as (f / f_r)^p, the hysteretic ones keep their loss), so no frequency bounds where r_p stands
-for the dynamic track at speed, and none is offered (docs/track.md gives the exact line against
-r_p per preset and speed).
+elastic, lossless stiffness at low frequency (the causal moduli soften below
+``track.damping_frequency`` as (f / f_r)^p, the hysteretic ones keep their loss), so no
+frequency bounds where r_p stands for the dynamic track at speed, and none is offered
+(docs/track.md gives the exact line against r_p per preset and speed).
 
 **The exact moving load** (:func:`mdroll.track.moving.moving_harmonics`): the steady state of the
 periodic model of :mod:`mdroll.track.periodic` under a constant load at speed v, with its dynamics
