@@ -112,10 +112,10 @@ class Track(Presettable):
         The frequency f_r (Hz) at which the stated stiffnesses hold exactly under causal
         damping (module docstring). Default 100 Hz.
     parametric : bool
-        A coupled run adds the moving load's quasi-static parametric excitation, the equivalent
-        roughness of :func:`mdroll.track.parametric.equivalent_roughness` at the static load
-        (x = 0 of the line above a support), to every realization's line. Only with
-        ``support = "discrete"``. Default False.
+        A coupled run adds the moving load's parametric excitation, the exact steady-state
+        equivalent roughness of :func:`mdroll.track.parametric.equivalent_roughness` at the static
+        load and the run's speed v0 (x = 0 of the line above a support), to every realization's
+        line. Only with ``support = "discrete"``. Default False.
     """
 
     support: str = "continuous"

@@ -5,9 +5,10 @@ or exact at the run's speed (the rule of a run: always exact, below).
 **Static receptance.** ``alpha_0(x)`` (m/N) is the rail's deflection under a static unit load at
 ``x`` (0 above a support, d/2 at mid-span), for the Timoshenko rail (:class:`~mdroll.track.Track`;
 Euler-Bernoulli with ``rail_shear_stiffness = inf``) on identical supports at x_n = n d, each the
-pad and the ballast in series, ``K_0 = k_p k_b / (k_p + k_b)``: the elastic stiffnesses (a static
-deflection has no loss; the hysteretic loss factors of the dynamic model do not apply at
-omega = 0), and the sleeper mass does not enter. It is solved directly and exactly: beam elements
+pad and the ballast in series, ``K_0 = k_p k_b / (k_p + k_b)``: the stated stiffnesses, elastic
+(a static deflection has no loss; the complex moduli of the dynamic model,
+:func:`mdroll.track.beam.modulus`, do not apply at omega = 0), and the sleeper mass does not
+enter. It is solved directly and exactly: beam elements
 with the exact static stiffness of a shear-deformable beam (nodal loads only, so the element is
 exact; Przemieniecki 1968, *Theory of Matrix Structural Analysis*, ch. 5) on the bay [0, d] with
 nodes at 0, x and d, and the semi-infinite rails on either side condensed into a 2x2 stiffness at
@@ -28,11 +29,12 @@ the force's fluctuation is of second order (neglected). r_p is periodic in d, so
 the sleeper-passing frequency v/d and its harmonics n v/d.
 
 **Assumption** (quasi-static): the load moves slowly against the track's waves, so that the
-rail's deflection under it follows the static shape. It holds at a harmonic n v/d as long as the
-dynamic variation of the receptance along the bay, ``alpha_mid(f) - alpha_sleeper(f)`` (the closed
-forms of :func:`mdroll.track.periodic.point_receptance`), stays within ``tolerance_db`` of its
-low-frequency value: :func:`quasi_static_frequency`, and for the fundamental up to the speed
-``v = f_qs d``.
+rail's deflection under it follows the static shape of the stated, elastic stiffnesses. r_p is
+that elastic limit, not the slow limit of the dynamic track: neither damping model tends to the
+elastic, lossless stiffness at low frequency (the causal moduli soften below
+``track.damping_frequency`` as (f / f_r)^p, the hysteretic ones keep their loss), so no
+frequency bounds where r_p stands for the dynamic track at speed, and none is offered
+(docs/track.md gives the exact line against r_p per preset and speed).
 
 **The exact moving load** (:func:`mdroll.track.moving.moving_harmonics`): the steady state of the
 periodic model of :mod:`mdroll.track.periodic` under a constant load at speed v, with its dynamics
@@ -44,12 +46,11 @@ w the deflection under F0 (:func:`moving_bay_roughness`).
 **The rule of a run: always the exact line**, at the run's speed (``speed`` of
 :func:`equivalent_roughness`, :func:`harmonics`, :func:`roughness_levels`; None gives the
 quasi-static line). It is a wavenumber integral of closed forms, made once a (track, speed) and
-cheap beside a run (docs/track.md gives its cost), so a switch to the quasi-static line below
-:func:`quasi_static_frequency` would save little, and one rule keeps (1) one model of the track:
-the line follows the same support stiffness, damping included, as the receptances the run steps,
-where the quasi-static line takes the elastic static stiffness, which the damping models need not
-tend to at zero frequency; (2) no jump in a run's results at a switching speed (the losses alone
-change the slow load's line).
+cheap beside a run (docs/track.md gives its cost), so a switch to the quasi-static line at low
+speeds would save little, and one rule keeps (1) one model of the track: the line follows the
+same support stiffness, damping included, as the receptances the run steps, where the
+quasi-static line takes the elastic stiffness, which neither damping model tends to at low
+frequency; (2) no jump in a run's results at a switching speed.
 The exact line holds the first :data:`MOVING_HARMONICS` harmonics and leaves out the rest: the
 harmonics fall as 1/n^2 (the kink of the deflection above a support), and wavelengths below d / 64
 lie at or beyond the first zero of the contact filter of a thesis-sized contact (2a = 10 mm).
@@ -66,7 +67,7 @@ from mdroll.roughness.bands import band_centres, wavelength_band_edges_q
 
 from .beam import support_stiffness
 from .moving import check_discrete, moving_harmonics
-from .periodic import free_waves, lattice_sum, point_receptance
+from .periodic import free_waves, lattice_sum
 
 #: Samples of the line over one bay (:func:`bay_roughness`) for :func:`equivalent_roughness`
 #: (periodic linear interpolation between them) and :func:`harmonics` (their discrete Fourier
@@ -77,9 +78,6 @@ BAY_POINTS = 1024
 MAX_BAYS = 10_000
 #: Reference of roughness levels: 1 um (dB re 1 um).
 ROUGHNESS_REFERENCE = 1e-6
-#: The frequency (Hz) of the low-frequency value of :func:`quasi_static_frequency`, and its scan.
-LOW_FREQUENCY = 1.0
-SCAN = (1.0, 5000.0, 800)
 #: :func:`moving_load_deflection`'s quadrature: wavenumbers (midpoint rule) up to this many
 #: times 2 pi / d, their count, source positions over a bay (trapezoid rule) and wavenumbers a block.
 MOVING_BAYS = 120
@@ -245,20 +243,6 @@ def roughness_levels(track, load: float, wavelengths_mm, speed=None) -> np.ndarr
 def sleeper_passing_frequency(track, speed: float) -> float:
     """The sleeper-passing frequency v / d (Hz) at ``speed`` (m/s)."""
     return speed / track.sleeper_spacing
-
-
-def quasi_static_frequency(track, tolerance_db: float = 1.0) -> float:
-    """The frequency (Hz) below which the quasi-static equivalent roughness holds: the lowest of a
-    log-spaced scan over :data:`SCAN` where the dynamic variation along the bay,
-    ``|alpha_mid(f) - alpha_sleeper(f)|`` (:func:`~mdroll.track.periodic.point_receptance`),
-    departs by more than ``tolerance_db`` from its value at :data:`LOW_FREQUENCY`; the scan's top
-    if it never does."""
-    check_discrete(track)
-    f = np.geomspace(*SCAN[:2], SCAN[2])
-    spread = np.abs(point_receptance(f, track, "midspan") - point_receptance(f, track, "sleeper"))
-    low = abs(point_receptance(LOW_FREQUENCY, track, "midspan") - point_receptance(LOW_FREQUENCY, track, "sleeper"))
-    off = np.abs(20.0 * np.log10(spread / low)) > tolerance_db
-    return float(f[np.argmax(off)]) if off.any() else float(f[-1])
 
 
 def moving_load_deflection(track, load: float, speed: float, x) -> np.ndarray:
