@@ -241,7 +241,9 @@ def linear_step(slot: PreparedSlot, contact: Contact, F_N: wp.float64, inv_mass:
 def peeked_slot(base: wp.uint64, s: int):
     """The prepared step s as the ring holds it now, and whether a helper has written it (its step
     read first, then its words): read the step before it is needed, so that its loads wait on
-    nothing and stand in no step's chain."""
+    nothing and stand in no step's chain. The words are those the step vouches for because a
+    warp's shared-memory loads complete in the order it issues them (an acquire load would say so
+    in the memory model's terms, on the step's chain); the CUDA tests hold it to 1e-12 F_N."""
     at = s & (RING - 1)
     written = shared_volatile(base, 10 * RING + at) == wp.float64(s + 1)
     slot = PreparedSlot()
