@@ -89,6 +89,42 @@ def test_layout_counts_are_bounded():
         coupled_helpers(5, "cpu", 32)
 
 
+def test_prepares_ahead_is_the_kernels_helped_variant():
+    # the registry's flag, which sizes coupled batches, against the kernels themselves
+    from mdroll.forces.registry import REGISTRY
+    from mdroll.kernels.direct import coupled_direct
+    from mdroll.kernels.dynamics import with_helpers
+    from mdroll.kernels.edge import coupled_edge
+    from mdroll.kernels.sweep_coupled import coupled_sweep
+    from mdroll.kernels.tree import coupled_tree
+
+    kernels = {"direct": coupled_direct, "edge": coupled_edge, "sweep": coupled_sweep, "tree": coupled_tree}
+    assert set(kernels) == {name for name, entry in REGISTRY.items() if entry.coupled is not None}
+    for name, kernel in kernels.items():
+        assert REGISTRY[name].prepares_ahead == (with_helpers(kernel) is not None), name
+
+
+def test_coupled_batches_are_whole_helped_waves(device):
+    # a multiprocessor's 64 K registers hold 3 blocks of 4 warps at 168 registers a lane; the CPU
+    # and an algorithm without helpers keep the memory's batch
+    from mdroll.ensemble.coupled import coupled_batch, coupled_helpers, helped_wave
+
+    if device == "cpu":
+        assert coupled_batch(1390, "sweep", False, device) == 1390
+        return
+    import warp as wp
+
+    wave = 3 * wp.get_device(device).sm_count
+    assert helped_wave(device) == wave
+    assert coupled_batch(int(3.5 * wave), "sweep", False, device) == 3 * wave
+    assert coupled_batch(9 * wave, "sweep", False, device) == 4 * wave
+    assert coupled_batch(9 * wave, "sweep", True, device) == wave
+    assert coupled_batch(wave - 1, "sweep", False, device) == wave - 1
+    assert coupled_batch(int(3.5 * wave), "tree", False, device) == int(3.5 * wave)
+    assert coupled_helpers(4 * wave, device) == 3 and coupled_helpers(4 * wave + 1, device) == 0
+    assert coupled_helpers(wave, device, modal=True) == 3 and coupled_helpers(wave + 1, device, modal=True) == 0
+
+
 def test_spectra_in_parts_are_the_whole_batchs(device, monkeypatch):
     # the coupled mode's spectra go SPECTRA_ROWS rows at a time, their moments merged: 7 rows in
     # parts of 3, 3 and 1 against one part of all 7

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..devices import is_cuda, warp
-from ..kernels.dynamics import (COUPLED_HELPERS, COUPLED_LANES, COUPLED_WARPS, INTEGRATORS, Modes, coupled_track,
-                                with_helpers, with_integrator)
+from ..kernels.dynamics import (COUPLED_HELPERS, COUPLED_LANES, COUPLED_WARPS, HELPED_REGISTERS, INTEGRATORS, Modes,
+                                coupled_track, with_helpers, with_integrator)
 from ..params import ParameterError, Params
 from ..forces.indenter import contact_constants
 from ..forces.registry import coupled_entry
@@ -56,24 +56,51 @@ def coupled_layout(rows: int, device: str, warps: int | None = None) -> tuple[in
     return -(-rows // per_block), COUPLED_LANES * warps
 
 
-#: Realizations a multiprocessor up to which a coupled launch on CUDA prepares its steps with
-#: helper warps (:func:`~mdroll.kernels.dynamics.with_helpers`, where the algorithm can): fewer
-#: leave the GPU's schedulers idle, so that helpers cost no time of the stepping warps'; more
-#: fill them, and the helpers' work would.
-HELPED_PER_MULTIPROCESSOR = 4
+#: 32-bit registers of a multiprocessor: 64 K on every architecture Warp builds for (sm_70 on).
+REGISTERS_PER_MULTIPROCESSOR = 65536
+
+#: Waves of a helped coupled launch (:func:`helped_wave`) up to which a launch on CUDA prepares
+#: its steps with helper warps, for the rigid contact point and for a modal one (a track or an
+#: elastic wheel). A realization's steps are latency-bound, so a helped launch takes about one
+#: stepping warp's run a wave; the direct band sum's launch grows by less a realization, and
+#: beyond these waves it is the faster (docs/performance.md, "Coupled mode").
+HELPED_WAVES = {False: 4, True: 1}
 
 
-def coupled_helpers(rows: int, device: str, helpers: int | None = None) -> int:
+def helped_wave(device: str) -> int:
+    """Realizations a helped coupled launch (:func:`~mdroll.kernels.dynamics.with_helpers`) runs
+    at once on the CUDA ``device``: its blocks of one realization (1 + COUPLED_HELPERS warps at
+    HELPED_REGISTERS registers a lane) resident together on every multiprocessor."""
+    per_multiprocessor = REGISTERS_PER_MULTIPROCESSOR // (HELPED_REGISTERS * COUPLED_LANES * (1 + COUPLED_HELPERS))
+    return per_multiprocessor * warp().get_device(device).sm_count
+
+
+def coupled_helpers(rows: int, device: str, helpers: int | None = None, modal: bool = False) -> int:
     """Helper warps a realization in a coupled launch on CUDA of ``rows`` realizations: by
-    default :data:`~mdroll.kernels.dynamics.COUPLED_HELPERS` up to
-    :data:`HELPED_PER_MULTIPROCESSOR` realizations a multiprocessor, none beyond; 0 to 31."""
+    default :data:`~mdroll.kernels.dynamics.COUPLED_HELPERS` up to :data:`HELPED_WAVES` waves
+    (``modal``: the contact point's), none beyond; 0 to 31."""
     if helpers is not None:
         if not 0 <= helpers <= 31:
             raise ParameterError(f"helpers = {helpers}: allowed are 0 to 31 helper warps a realization")
         return helpers
     if not is_cuda(device):
         return 0
-    return COUPLED_HELPERS if rows <= HELPED_PER_MULTIPROCESSOR * warp().get_device(device).sm_count else 0
+    return COUPLED_HELPERS if rows <= HELPED_WAVES[modal] * helped_wave(device) else 0
+
+
+def coupled_batch(batch: int, algorithm: str, modal: bool, device: str) -> int:
+    """The realizations a batch of a coupled run, from ``batch``, the memory's: on CUDA, for an
+    algorithm whose steps helpers prepare (``prepares_ahead``), at most :data:`HELPED_WAVES`
+    waves (``modal``: the contact point's), and whole waves where it holds one or more: a helped
+    launch takes about a wave's time for each wave begun, so a batch of whole waves runs the most
+    realizations a second and a run's batches split over devices as its waves do. ``batch``
+    elsewhere."""
+    if not is_cuda(device) or not coupled_entry(algorithm).prepares_ahead:
+        return batch
+    wave = helped_wave(device)
+    if batch < wave:
+        return batch
+    return min(batch, HELPED_WAVES[modal] * wave) // wave * wave
 
 
 def coupled_series(prepared, params: Params, algorithm: str, device: str, d_start: float | None = None,
@@ -106,7 +133,7 @@ def coupled_series(prepared, params: Params, algorithm: str, device: str, d_star
         kernel = coupled_track(kernel)
         state = wp.zeros((rows, form.order), dtype=wp.vec2d, device=device)
     blocks, block_dim = coupled_layout(rows, device, warps)
-    helpers = coupled_helpers(rows, device, helpers)
+    helpers = coupled_helpers(rows, device, helpers, modal=form is not None)
     helped = with_helpers(kernel)
     if helped is not None and (helpers > 0 or not is_cuda(device)):
         kernel, blocks, block_dim = helped, rows, COUPLED_LANES * (1 + helpers)

@@ -60,6 +60,10 @@ class Algorithm:
     max_window : int or None
         Contact windows (springs a side) up to which its float64 closed forms are exact; a
         wider one is refused before launch. None: no such limit.
+    prepares_ahead : bool
+        Its coupled kernel's steps can be prepared ahead by helper warps
+        (:func:`~mdroll.kernels.dynamics.with_helpers` gives its helped variant), which sizes a
+        coupled run's batches on CUDA (:func:`mdroll.ensemble.coupled.coupled_batch`).
     bench_variants : tuple of BenchVariant
         Settings the scaling study times beside the default.
     bench_point_limit : dict
@@ -75,5 +79,6 @@ class Algorithm:
     coupled: Callable | None
     complexity: Complexity
     max_window: int | None = None
+    prepares_ahead: bool = False
     bench_variants: tuple = ()
     bench_point_limit: dict = field(default_factory=dict)

@@ -110,6 +110,7 @@ REGISTRY: dict[str, Algorithm] = {
             # step sums the bands directly (O(band) a step; see DEFAULT_ALGORITHMS)
             coupled=sweep_coupled,
             max_window=MAX_CLOSED_FORM_OFFSET,  # the core's closed form, sum of m^2
+            prepares_ahead=True,  # its window of d's springs, built by helper warps
             complexity=Complexity(refinement=1.0, text="O(n) a line"),
             bench_point_limit={"cpu": 2**23},
         ),
