@@ -9,6 +9,7 @@ import pytest
 from mdroll import Params, rough_lines
 from mdroll.ensemble.coupled import contact_compliance, coupled_series
 from mdroll.forces.prepare import prepare_lines
+from mdroll.statespace import ModalForm
 from mdroll.track import Track
 from reference import direct_force, to_numpy
 
@@ -74,6 +75,34 @@ def test_modal_contact_point_is_the_stepped_state_space(device):
             rate += p.dt * a
             depth += p.dt * rate
     assert np.ptp(force) > 0.01 * p.F_N
+
+
+def test_modes_look_ahead_is_the_one_step_recursion(device):
+    # the kernel steps its modes with an exact look-ahead (y from the sums of modes steps before
+    # and taps on the last forces); here well-conditioned modes (a modal wheel's oscillators, the
+    # wheel mass held: d = d0 - y) against the one-step recursion y = 2 Re sum q, numpy in
+    # complex, over ~650 steps: the force to 1e-12 F_N, on the launch's choice of layout and
+    # (CUDA) with no helpers; six modes, two past the CPU's one lane's held ones
+    p = Params(L=0.024, dx=20e-6, h0=10e-6, H=0.5)
+    form = ModalForm.oscillators(np.array([140.0, 650.0, 1300.0, 2600.0, 4100.0, 6300.0]),
+                                 np.array([600.0, 90.0, 70.0, 50.0, 40.0, 30.0]),
+                                 np.array([0.05, 0.01, 0.02, 0.005, 0.01, 0.03]))
+    lines = rough_lines(p, seed=2, realizations=3, device=device)
+    prepared = prepare_lines(lines, p, "sweep", "open", p.d0, device)
+    phi, gamma = form.discretize(p.dt)
+    host = to_numpy(lines)
+    reference = np.zeros((3, prepared.steps))
+    for r in range(3):
+        q = np.zeros(form.order, dtype=complex)
+        y = 0.0
+        for s in range(prepared.steps):
+            F = reference[r, s] = direct_force(host[r], p, [(prepared.first + s) * p.dx], p.d0 - y)[0]
+            q = phi * q + gamma * (F - p.F_N)
+            y = 2 * np.sum(q.real)
+    assert np.ptp(reference) > 0.05 * p.F_N
+    for helpers in (None, 0):
+        force = to_numpy(coupled_series(prepared, p, "sweep", device, compliance=(form, False), helpers=helpers)[0])
+        assert np.max(np.abs(force - reference)) <= 1e-12 * p.F_N, helpers
 
 
 def test_layout_counts_are_bounded():

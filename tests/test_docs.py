@@ -175,6 +175,8 @@ COMMANDS = {
     "python benchmarks/coupled_scaling.py --algorithms sweep --realizations 75 300 600 1200 4800 --dx 5e-6 --warps 4 "
     "--tracks rigid ballasted-soft-pad --helpers 3 0 --out coupled_scaling.json":
         ("options", "python benchmarks/coupled_scaling.py"),
+    "python benchmarks/coupled_scaling.py --algorithms sweep --realizations 300 --dx 5e-6 --warps 4 "
+    "--tracks ballasted-soft-pad --out coupled_scaling.json": ("options", "python benchmarks/coupled_scaling.py"),
     "python benchmarks/coupled_scaling.py --algorithms sweep --realizations 75 300 600 1200 --dx 5e-6 --warps 4 "
     "--tracks rigid ballasted-soft-pad --helpers 3 0 --out coupled_scaling.json":
         ("options", "python benchmarks/coupled_scaling.py"),

@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..devices import is_cuda, warp
-from ..kernels.dynamics import (COUPLED_HELPERS, COUPLED_LANES, COUPLED_WARPS, HELPED_REGISTERS, INTEGRATORS, Modes,
+from ..kernels.dynamics import (COUPLED_HELPERS, COUPLED_LANES, COUPLED_WARPS, HELPED_REGISTERS, INTEGRATORS,
                                 coupled_track, with_helpers, with_integrator)
+from ..kernels.modal import LOOKAHEAD, ModalTaps, Modes
 from ..params import ParameterError, Params
 from ..forces.indenter import contact_constants
 from ..forces.registry import coupled_entry
@@ -30,17 +31,20 @@ def contact_compliance(track: Track | None, wheel: Wheel | None, position: str =
 
 
 def _modes(form: ModalForm | None, dt: float, device: str):
-    """The kernel's :class:`~mdroll.kernels.dynamics.Modes` of ``form`` stepped over dt (none
-    for the rigid contact point)."""
+    """The kernel's :class:`~mdroll.kernels.modal.Modes` of ``form`` stepped over dt, with the
+    look-ahead of :data:`~mdroll.kernels.modal.LOOKAHEAD` steps worked out in float64 (none for
+    the rigid contact point)."""
     wp = warp()
     modes = Modes()
-    modes.n, modes.gain = 0, 0.0
+    modes.n, modes.taps = 0, ModalTaps()
     if form is not None:
         phi, gamma = form.discretize(dt)
-        modes.phi_re, modes.phi_im, modes.gamma_re, modes.gamma_im = (
+        powers = phi[None, :] ** np.arange(LOOKAHEAD + 1)[:, None]  # phi^0 ... phi^m per mode
+        drive = powers[LOOKAHEAD] * gamma
+        modes.phi_re, modes.phi_im, modes.input_re, modes.input_im = (
             wp.array(np.ascontiguousarray(x), dtype=wp.float64, device=device) for x in (phi.real, phi.imag,
-                                                                                            gamma.real, gamma.imag))
-        modes.n, modes.gain = form.order, float(2.0 * np.sum(gamma.real))
+                                                                                            drive.real, drive.imag))
+        modes.n, modes.taps = form.order, ModalTaps(*(2.0 * np.sum(powers[:LOOKAHEAD] * gamma, axis=1).real))
     return modes
 
 

@@ -14,7 +14,8 @@ whether it explains the thesis's Figure 11 (mdroll study coupling); every amplit
 :func:`coupled_dynamics` makes the kernel of one force algorithm from its lane force and its
 row set-up (``wp.func`` functions), compiled apart (``wp.static``): each algorithm's kernel module
 declares its own. The contact point is a compile-time choice of the same kernel: the rigid rail
-of eq 13, or a modal state space (:class:`Modes`) stepped with the wheel (:func:`coupled_track`).
+of eq 13, or a modal state space (:class:`~mdroll.kernels.modal.Modes`) stepped with the wheel
+(:func:`coupled_track`).
 """
 
 from typing import Any
@@ -22,8 +23,10 @@ from typing import Any
 import warp as wp
 
 from .common import Contact
-from .intrinsics import (backoff, fence_block, row_address, set_shared_pair, set_shared_volatile, shared_pair,
-                         shared_volatile, store_float, sync_block, sync_warp, warp_sum_float, warp_sum_float_pair)
+from .intrinsics import (PipelineSums, backoff, fence_block, pipelined_sums, row_address, set_shared_pair,
+                         set_shared_volatile, shared_pair, shared_volatile, store_float, sync_block, sync_warp,
+                         warp_sum_float)
+from .modal import ModalComing, Modes, held_coefficients, modal_update
 
 #: Lanes sharing one realization in the coupled dynamics on CUDA: one whole warp, so that a step's
 #: sum is a butterfly of warp shuffles. Warp runs tiles with one thread on the CPU: one lane there.
@@ -78,78 +81,6 @@ PreparedSums = wp.types.vector(length=PREPARED_STEPS, dtype=wp.float64)
 # (lines_type, lane_force, row_setup) of each kernel made, and every kernel made, by its arguments
 _MADE_FROM: dict = {}
 _KERNELS: dict = {}
-
-
-@wp.struct
-class Modes:
-    """The zero-order-hold step of a modal state space (:class:`mdroll.statespace.ModalForm`):
-    per mode k, ``q_k <- phi_k q_k + gamma_k u`` (complex) and the output ``y = 2 Re sum_k q_k``;
-    ``gain = 2 Re sum_k gamma_k``, the output's step response to u over one step from rest."""
-
-    phi_re: wp.array(dtype=wp.float64)
-    phi_im: wp.array(dtype=wp.float64)
-    gamma_re: wp.array(dtype=wp.float64)
-    gamma_im: wp.array(dtype=wp.float64)
-    gain: wp.float64
-    n: int
-
-
-#: Modes a lane keeps in registers over the steps (on CUDA 4 x 32 = 128 modes a realization);
-#: the rest in the state array, read and written every step.
-HELD_MODES = 4
-held_modes = wp.types.vector(length=6 * HELD_MODES, dtype=wp.float64)
-
-
-@wp.func
-def held_coefficients(modes: Modes, lane: int, lanes: int) -> held_modes:
-    """The zero states and the step's coefficients ``(phi_re, phi_im, gamma_re, gamma_im)`` of
-    this lane's first :data:`HELD_MODES` modes, in registers for :func:`modal_step`."""
-    held = held_modes()
-    for j in range(HELD_MODES):
-        k = lane + j * lanes
-        if k < modes.n:
-            held[6 * j + 2] = modes.phi_re[k]
-            held[6 * j + 3] = modes.phi_im[k]
-            held[6 * j + 4] = modes.gamma_re[k]
-            held[6 * j + 5] = modes.gamma_im[k]
-    return held
-
-
-@wp.func
-def stepped_mode(modes: Modes, k: int, q: wp.vec2d, u: wp.float64) -> wp.vec2d:
-    """Mode k's complex state q over one time step under the force u (N)."""
-    return wp.vec2d(modes.phi_re[k] * q[0] - modes.phi_im[k] * q[1] + modes.gamma_re[k] * u,
-                    modes.phi_re[k] * q[1] + modes.phi_im[k] * q[0] + modes.gamma_im[k] * u)
-
-
-@wp.func
-def free_part(modes: Modes, k: int, q: wp.vec2d) -> wp.float64:
-    """Mode k's part ``2 Re phi_k q_k`` of the next step's free output (m)."""
-    return wp.float64(2.0) * (modes.phi_re[k] * q[0] - modes.phi_im[k] * q[1])
-
-
-@wp.func
-def modal_step(modes: Modes, state: wp.array2d(dtype=wp.vec2d), r: int, u: wp.float64, lane: int, lanes: int,
-               held: held_modes):
-    """Steps the modes ``lane, lane + lanes, ...`` of realization r over one time step under
-    the force u (N), held over the step: the first :data:`HELD_MODES` in ``held`` (each its
-    state re, im and :func:`held_coefficients`), the others in ``state[r, k]``. Returns their part of the next step's free output
-    ``2 Re sum_k phi_k q_k`` (m), the parts of all lanes summing to the output the modes would
-    give one step later under no force, and ``held`` stepped."""
-    free = wp.float64(0.0)
-    two = wp.float64(2.0)
-    for j in range(HELD_MODES):
-        if lane + j * lanes < modes.n:
-            re = held[6 * j + 2] * held[6 * j] - held[6 * j + 3] * held[6 * j + 1] + held[6 * j + 4] * u
-            im = held[6 * j + 2] * held[6 * j + 1] + held[6 * j + 3] * held[6 * j] + held[6 * j + 5] * u
-            held[6 * j] = re
-            held[6 * j + 1] = im
-            free += two * (held[6 * j + 2] * re - held[6 * j + 3] * im)
-    for k in range(lane + HELD_MODES * lanes, modes.n, lanes):
-        q = stepped_mode(modes, k, state[r, k], u)
-        state[r, k] = q
-        free += free_part(modes, k, q)
-    return free, held
 
 
 @wp.func_native("""
@@ -382,11 +313,12 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
         Launched tiled: on CUDA each warp of a block steps one realization (rows past ``rows``
         return), on the CPU each block one. Time is sequential, so the lanes share each step's
         force instead: every lane computes its part (``lane_force``) and its modes, a butterfly
-        of shuffles sums both in every lane, and every lane advances the same state with the
+        of shuffles sums the force in every lane, and every lane advances the same state with the
         same arithmetic. What the steps need of the row is read once before them
-        (``row_setup``) and passed from step to step. The output y of the next step is the
-        modes' free part plus ``gain`` times the force: the modes step beside the next step's
-        force, off its chain. In the ``helped`` variant a block holds one realization: its
+        (``row_setup``) and passed from step to step. The output y of the next step comes from
+        the modes' exact look-ahead (:mod:`mdroll.kernels.modal`): their sums over the lanes
+        advance one butterfly level a step beside the force, and the step's chain keeps one
+        multiply-add of it. In the ``helped`` variant a block holds one realization: its
         first warp steps it, the steps' forces prepared ahead (``prepare``, :data:`PREPARED_STEPS`
         a build) by the block's other warps in turn, or by the first warp itself in a block of
         one warp, and read from the block's shared ring a step early, so that a step's chain is
@@ -428,8 +360,9 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
         d_w = d_start
         v = wp.float64(0.0)
         y = wp.float64(0.0)  # the contact point's displacement (m), modal variant
-        free = wp.float64(0.0)  # this lane's part of the next y without force
         held = held_coefficients(modes, lane, lanes)  # this lane's first modes
+        sums = PipelineSums()  # the modes' sums over the lanes in flight (modal_update)
+        coming = ModalComing()  # the parts of the next outputs known so far
         a = wp.float64(0.0)
         ahead = PreparedSlot()  # the next step's prepared slot, read a step early (helped variant)
         ahead_written = bool(False)
@@ -454,24 +387,15 @@ def _coupled_kernel(lines_type, lane_force, row_setup, forward_euler: bool, moda
                 if s >= PREPARED_AHEAD + 2 and not ahead_written:  # not written when read: wait for it
                     line = linear_step(awaited_slot(base, s), contact, F_N, inv_mass)
                 ahead, ahead_written = peeked_slot(base, s + 1)  # the next step's, off this step's chain
-                free_sum = wp.float64(0.0)
-                if wp.static(modal):
-                    free_sum = warp_sum_float(free)  # not waiting on this step's force
+            if wp.static(modal):
+                sums = pipelined_sums(sums)  # a level of each sum in flight, not waiting on this step's force
+            if wp.static(helped):
                 F, a, row = prepared_step(lines, row, base, s, line, first + s, d, contact, F_N, inv_mass, lane, lanes)
-                if wp.static(modal):
-                    u = F - F_N
-                    y = free_sum + modes.gain * u
-                    free, held = modal_step(modes, state, r, u, lane, lanes, held)
-            elif wp.static(modal):
-                part, row = wp.static(lane_force)(lines, row, first + s, d, contact, lane, lanes)
-                sums = warp_sum_float_pair(wp.vec2d(part, free))
-                F = sums[0]
-                u = F - F_N
-                y = sums[1] + modes.gain * u
-                free, held = modal_step(modes, state, r, u, lane, lanes, held)
             else:
                 part, row = wp.static(lane_force)(lines, row, first + s, d, contact, lane, lanes)
                 F = warp_sum_float(part)
+            if wp.static(modal):
+                y, held, sums, coming = modal_update(modes, state, r, F - F_N, lane, lanes, held, sums, coming)
             if wp.static(helped):  # every lane holds F and a: lane j keeps step j of a batch of `lanes`
                 batch = s & (lanes - 1)
                 if lane == batch:

@@ -187,6 +187,38 @@ def warp_sum_float(value: wp.float64) -> wp.float64:
     ...
 
 
+#: Levels of a butterfly over the 32 lanes of a warp: the steps a sum takes through
+#: :func:`pipelined_sums`.
+PIPELINE_LEVELS = 5
+
+#: The sums in flight through :func:`pipelined_sums`: entry i has had i levels.
+PipelineSums = wp.types.vector(length=PIPELINE_LEVELS + 1, dtype=wp.float64)
+
+
+@wp.func_native("""
+constexpr int P = sizeof(sums.c) / sizeof(sums.c[0]);
+#pragma unroll
+for (int i = P - 1; i > 0; --i) {
+#if defined(__CUDA_ARCH__)
+    sums.c[i] = sums.c[i - 1] + __shfl_xor_sync(0xffffffffu, sums.c[i - 1], 32 >> i);
+#else
+    sums.c[i] = sums.c[i - 1];
+#endif
+}
+sums.c[0] = 0.0;
+return sums;
+""")
+def pipelined_sums(sums: PipelineSums) -> PipelineSums:
+    """One level of the butterfly of :func:`warp_sum_float` for each of the sums in flight: entry
+    i + 1 becomes entry i with level i + 1 done (lanes ``lane ^ (16 >> i)`` added, in either
+    order, so that every lane holds the same bits), entry 0 zero for the next sum to enter;
+    the last entry is a whole sum over the warp's 32 lanes, :data:`PIPELINE_LEVELS` calls after
+    it entered (CUDA; the value itself, as late, on the CPU, where a block is one lane; every
+    lane of the warp must call). The levels are independent of each other: a call costs one
+    shuffle's latency, not five."""
+    ...
+
+
 @wp.func_native("""
 #if defined(__CUDA_ARCH__)
 double a = value.c[0], b = value.c[1];
