@@ -11,9 +11,8 @@ import json
 
 import numpy as np
 
-from bem_speed import E_STAR, RADIUS, commit, graph_seconds, median_seconds, problem
+from bem_speed import E_STAR, RADIUS, commit, graph_seconds, median_seconds, primed_solver, problem
 from mdroll.bem import solve
-from mdroll.bem.halfspace import HalfSpace
 from mdroll.bem.solver import device_gap, initial_pressure, workspace
 from mdroll.provenance import environment
 
@@ -30,14 +29,9 @@ def kernels(n, batch):
 
     from mdroll.bem import fused
 
-    s = fused.FusedCG(HalfSpace(n, 1e-5, E_STAR, xp=cupy), batch, False)
+    s = primed_solver(n, batch)
     out = {}
     with s.stream:
-        s.p[:, :, :n] = cupy.random.default_rng(1).random((batch, n, n))
-        s.separation[...] = cupy.random.default_rng(2).random((batch, n, n))
-        state = np.zeros((batch, fused.FIELDS))
-        state[:, fused.ACTIVE], state[:, fused.MAX_ITER], state[:, fused.G_OLD] = 1.0, 1e18, 1.0
-        s.state.set(state)
         grid, block, cells, load, k = (s.chunks, batch), (fused.THREADS,), np.int32(n), np.int32(0), s.kernels
         stages = {
             "rows_forward": lambda: s.forward.fft(s.p, s.spectra, cufft.CUFFT_FORWARD),

@@ -120,6 +120,23 @@ def contactmechanics_solve(heights, dx, d0, force):
     return {"seconds": seconds, "iterations": int(result.nit), "force": theirs, "force_ratio": force / theirs}
 
 
+def primed_solver(n, batch):
+    """A fused solver of ``batch`` members on n x n cells for timing its stages: pressure and
+    separation random (seeded), every member active, with contact everywhere."""
+    import cupy
+
+    from mdroll.bem import fused
+
+    solver = fused.FusedCG(HalfSpace(n, 1e-5, E_STAR, xp=cupy), batch, False)
+    with solver.stream:
+        solver.p[:, :, :n] = cupy.random.default_rng(1).random((batch, n, n))
+        solver.separation[...] = cupy.random.default_rng(2).random((batch, n, n))
+        state = np.zeros((batch, fused.FIELDS))
+        state[:, fused.ACTIVE], state[:, fused.MAX_ITER], state[:, fused.G_OLD] = 1.0, 1e18, 1.0
+        solver.state.set(state)
+    return solver
+
+
 def graph_seconds(stream, body, repeats=20):
     """Seconds of one ``body()``: captured ``repeats`` times in a CUDA graph, the graph's replay
     timed by events after one untimed replay."""
@@ -150,14 +167,8 @@ def floor(args):
     n = args.n
     out = {}
     for batch in (args.batch, 1):
-        op = HalfSpace(n, 1e-5, E_STAR, xp=cupy)
-        solver = fused.FusedCG(op, batch, False)
+        solver = primed_solver(n, batch)
         with solver.stream:
-            solver.p[:, :, :n] = cupy.random.default_rng(1).random((batch, n, n))
-            solver.separation[...] = cupy.random.default_rng(2).random((batch, n, n))
-            state = np.zeros((batch, fused.FIELDS))
-            state[:, fused.ACTIVE], state[:, fused.MAX_ITER], state[:, fused.G_OLD] = 1.0, 1e18, 1.0
-            solver.state.set(state)
             convolution = graph_seconds(solver.stream, lambda: solver.convolve(solver.p, solver.u))
             iteration = graph_seconds(solver.stream, solver._iteration)
             solver.state[:, fused.ACTIVE] = 0.0
