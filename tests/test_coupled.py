@@ -82,11 +82,12 @@ def test_modes_look_ahead_is_the_one_step_recursion(device):
     # and taps on the last forces); here well-conditioned modes (a modal wheel's oscillators, the
     # wheel mass held: d = d0 - y) against the one-step recursion y = 2 Re sum q, numpy in
     # complex, over ~650 steps: the force to 1e-12 F_N, on the launch's choice of layout and
-    # (CUDA) with no helpers; six modes, two past the CPU's one lane's held ones
+    # (CUDA) with no helpers; 35 modes, three past the held ones of a warp's 32 lanes (CUDA), 34
+    # past the CPU's one lane's, stepped from the state array
     p = Params(L=0.024, dx=20e-6, h0=10e-6, H=0.5)
-    form = ModalForm.oscillators(np.array([140.0, 650.0, 1300.0, 2600.0, 4100.0, 6300.0]),
-                                 np.array([600.0, 90.0, 70.0, 50.0, 40.0, 30.0]),
-                                 np.array([0.05, 0.01, 0.02, 0.005, 0.01, 0.03]))
+    frequencies = np.geomspace(140.0, 6300.0, 35)
+    form = ModalForm.oscillators(frequencies, 600.0 * (140.0 / frequencies) ** 0.6,
+                                 0.005 + 0.045 * (np.arange(35) % 4) / 3)
     lines = rough_lines(p, seed=2, realizations=3, device=device)
     prepared = prepare_lines(lines, p, "sweep", "open", p.d0, device)
     phi, gamma = form.discretize(p.dt)

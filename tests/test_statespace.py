@@ -9,6 +9,8 @@ import scipy.optimize
 from scipy import signal
 
 from mdroll import ParameterError, Params
+from mdroll.kernels.dynamics import COUPLED_LANES
+from mdroll.kernels.modal import HELD_MODES
 from mdroll.physics import TWO_PI
 from mdroll.statespace import ModalForm, error_db, passive_residues, vector_fit
 from mdroll.track import Track, receptance
@@ -66,17 +68,19 @@ def test_modal_wheel_is_its_modes_and_a_causal_suspension():
 #: The passive fits' largest complex error over 50 Hz - 5 kHz (dB), rounded up (docs/track.md,
 #: "State space"), with the presets' causal damping: within the 0.5 dB the coupled run needs.
 RAIL_FIT_DB = {("ballasted-soft-pad", "sleeper"): 0.001, ("ballasted-soft-pad", "midspan"): 0.001,
-               ("ballasted-stiff-pad", "sleeper"): 0.002, ("ballasted-stiff-pad", "midspan"): 0.02,
-               ("slab", "sleeper"): 0.001, ("slab", "midspan"): 0.001}
+               ("ballasted-stiff-pad", "sleeper"): 0.02, ("ballasted-stiff-pad", "midspan"): 0.02,
+               ("slab", "sleeper"): 0.002, ("slab", "midspan"): 0.003}
 
 
 @pytest.mark.parametrize("name, position", list(RAIL_FIT_DB))
 def test_rail_fit_is_passive_and_close(name, position):
-    # the form the coupled run steps: stable, passive by the exact test, and within RAIL_FIT_DB
-    # of the frequency-domain receptance on a grid other than the fit's own
+    # the form the coupled run steps: stable, passive by the exact test, within RAIL_FIT_DB of
+    # the frequency-domain receptance on a grid other than the fit's own, and of at most one
+    # mode a lane of a warp, all held in registers (FIT_ORDER's decision)
     track = Track.preset(name)
     form = rail_modal_form(track, position)
     assert np.all(form.poles.real < 0) and form.is_passive()
+    assert form.order <= COUPLED_LANES * HELD_MODES
     f = np.geomspace(*CHECK_BAND, 1500)
     error = np.max(error_db(form.response(f), receptance(track, f, position)))
     assert error == pytest.approx(form.error_db, rel=0.1, abs=1e-4)

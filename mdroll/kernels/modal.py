@@ -49,10 +49,11 @@ class Modes:
     n: int
 
 
-#: Modes a lane keeps in registers over the steps (on CUDA 3 x 32 = 96 modes a realization, the
-#: track presets' fits and more; within the helped kernels' register cap); the rest in the state
-#: array, read and written every step.
-HELD_MODES = 3
+#: Modes a lane keeps in registers over the steps (on CUDA 32 modes a realization: the causal
+#: track presets' fits, :data:`mdroll.track.fit.FIT_ORDER`); the rest in the state array, read and
+#: written every step. One: each more held mode's six registers cost the helped kernels, at
+#: their register cap, more than its loads save (docs/performance.md, "Track").
+HELD_MODES = 1
 held_modes = wp.types.vector(length=6 * HELD_MODES, dtype=wp.float64)
 
 

@@ -25,11 +25,15 @@ from .response import receptance
 #: so that the fit's edges fall outside it.
 FIT_BAND = (25.0, 8000.0)
 FIT_SAMPLES = 600
-#: Band (Hz) over which the fit's error is stated, and the fit's starting pole pairs and
-#: iterations (docs/track.md, "State space": more pole pairs fit worse, the problem's conditioning).
+#: Band (Hz) over which the fit's error is stated, and the fit's iterations.
 CHECK_BAND = (50.0, 5000.0)
-FIT_ORDER = 64
 FIT_ITERATIONS = 6
+#: The fit's starting pole pairs by the track's damping (docs/track.md, "State space"). Causal:
+#: few enough that the presets' fits keep at most 32 modes, one a lane of the coupled kernel's
+#: warp (:data:`mdroll.kernels.modal.HELD_MODES`), and follow the closed form within 0.01 dB as
+#: with twice as many. Hysteretic: as many as before causal damping existed, so that its runs and
+#: their checkpoints stay as they were (fewer fit it worse).
+FIT_ORDER = {"causal": 28, "hysteretic": 64}
 #: The passive fit's samples reach down to this frequency (Hz), weighted by :data:`PASSIVE_LOW_WEIGHT`
 #: below :data:`FIT_BAND`, so that the fit follows the passive receptance there, and its rounds of
 #: residue perturbation (:func:`mdroll.statespace.passive_residues`).
@@ -53,7 +57,7 @@ def rail_modal_form(track, position: str = "sleeper", passive: bool = True) -> M
         return ModalForm(np.zeros(0, dtype=complex), np.zeros(0, dtype=complex))
     low = PASSIVE_LOW_FREQUENCY if passive else FIT_BAND[0]
     f = np.geomspace(low, FIT_BAND[1], FIT_SAMPLES + round(100 * np.log10(FIT_BAND[0] / low)))
-    form = vector_fit(f, receptance(track, f, position), FIT_ORDER, *FIT_BAND, iterations=FIT_ITERATIONS,
+    form = vector_fit(f, receptance(track, f, position), FIT_ORDER[track.damping], *FIT_BAND, iterations=FIT_ITERATIONS,
                       passivity_rounds=PASSIVITY_ROUNDS if passive else 0,
                       weight=np.where(f < FIT_BAND[0], PASSIVE_LOW_WEIGHT, 1.0))
     if passive and not form.is_passive():
