@@ -134,24 +134,51 @@ def test_prepares_ahead_is_the_kernels_helped_variant():
         assert REGISTRY[name].prepares_ahead == (with_helpers(kernel) is not None), name
 
 
-def test_coupled_batches_are_whole_helped_waves(device):
+def test_coupled_batches_are_planned_least_in_time():
+    # plan_batches against the least cost over every sequence of batches that sums to the count
+    # (dynamic programming), a batch of more than helped_waves waves costing direct_waves (and
+    # holding at most the memory's batch), any other a time unit a wave begun; small waves
+    from mdroll.ensemble.coupled import DIRECT_WAVE_TIMES, HELPED_WAVES, plan_batches
+
+    for modal in (False, True):  # a direct launch slower than the longest helped one, else no helpers
+        assert DIRECT_WAVE_TIMES[modal] > HELPED_WAVES[modal]
+    for wave, batch, helped_waves, direct_waves in [(4, 14, 3, 3.3), (4, 14, 1, 2.0), (5, 12, 1, 1.5),
+                                                    (4, 9, 3, 3.3), (4, 3, 3, 3.3)]:
+        def cost(b):
+            return direct_waves if b > helped_waves * wave else -(-b // wave)
+
+        least = [0.0]
+        for n in range(1, 61):
+            least.append(min(least[n - b] + cost(b) for b in range(1, min(batch, n) + 1)))
+        for count in range(61):
+            sizes = plan_batches(count, batch, wave, helped_waves, direct_waves)
+            assert sum(sizes) == count and all(0 < b <= batch for b in sizes), (count, sizes)
+            assert sum(map(cost, sizes)) == pytest.approx(least[count]), (wave, batch, count, sizes)
+    # a memory of 3.5 waves of 396: whole memory batches summed directly, the rest in helped waves
+    assert plan_batches(3745, 1390, 396, 3, 3.3) == [1390, 1188, 1167]
+    assert plan_batches(7490, 1390, 396, 3, 3.3) == [1390] * 4 + [1188, 742]
+    assert plan_batches(1000, 1390, 396, 3, 3.3) == [1000]
+
+
+def test_coupled_plan_is_the_devices(device):
     # a multiprocessor's 64 K registers hold 3 blocks of 4 warps at 168 registers a lane; the CPU
     # and an algorithm without helpers keep the memory's batch
-    from mdroll.ensemble.coupled import coupled_batch, coupled_helpers, helped_wave
+    from mdroll.ensemble.coupled import (DIRECT_WAVE_TIMES, HELPED_WAVES, coupled_helpers, coupled_plan, helped_wave,
+                                         plan_batches)
 
     if device == "cpu":
-        assert coupled_batch(1390, "sweep", False, device) == 1390
+        assert coupled_plan(3000, 1390, "sweep", False, device) == [1390, 1390, 220]
         return
     import warp as wp
 
     wave = 3 * wp.get_device(device).sm_count
     assert helped_wave(device) == wave
-    assert coupled_batch(int(3.5 * wave), "sweep", False, device) == 3 * wave
-    assert coupled_batch(9 * wave, "sweep", False, device) == 4 * wave
-    assert coupled_batch(9 * wave, "sweep", True, device) == wave
-    assert coupled_batch(wave - 1, "sweep", False, device) == wave - 1
-    assert coupled_batch(int(3.5 * wave), "tree", False, device) == int(3.5 * wave)
-    assert coupled_helpers(4 * wave, device) == 3 and coupled_helpers(4 * wave + 1, device) == 0
+    for modal in (False, True):
+        assert coupled_plan(9 * wave, 3 * wave + 1, "sweep", modal, device) == plan_batches(
+            9 * wave, 3 * wave + 1, wave, HELPED_WAVES[modal], DIRECT_WAVE_TIMES[modal])
+    memory = int(3.5 * wave)
+    assert coupled_plan(9 * wave, memory, "tree", False, device) == [memory] * 2 + [9 * wave - 2 * memory]
+    assert coupled_helpers(3 * wave, device) == 3 and coupled_helpers(3 * wave + 1, device) == 0
     assert coupled_helpers(wave, device, modal=True) == 3 and coupled_helpers(wave + 1, device, modal=True) == 0
 
 

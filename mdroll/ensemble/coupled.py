@@ -65,10 +65,14 @@ REGISTERS_PER_MULTIPROCESSOR = 65536
 
 #: Waves of a helped coupled launch (:func:`helped_wave`) up to which a launch on CUDA prepares
 #: its steps with helper warps, for the rigid contact point and for a modal one (a track or an
-#: elastic wheel). A realization's steps are latency-bound, so a helped launch takes about one
-#: stepping warp's run a wave; the direct band sum's launch grows by less a realization, and
-#: beyond these waves it is the faster (docs/performance.md, "Coupled mode").
-HELPED_WAVES = {False: 4, True: 1}
+#: elastic wheel); beyond, the band is summed directly. A realization's steps are latency-bound,
+#: so a helped launch takes about one stepping warp's run a wave begun, while the direct launch
+#: hardly grows with its realizations (docs/performance.md, "Coupled batches").
+HELPED_WAVES = {False: 3, True: 1}
+
+#: The time of a direct launch of a whole memory batch, in helped waves (the same keys): the cost
+#: :func:`plan_batches` weighs a direct batch by (docs/performance.md, "Coupled batches").
+DIRECT_WAVE_TIMES = {False: 3.3, True: 2.1}
 
 
 def helped_wave(device: str) -> int:
@@ -92,19 +96,43 @@ def coupled_helpers(rows: int, device: str, helpers: int | None = None, modal: b
     return COUPLED_HELPERS if rows <= HELPED_WAVES[modal] * helped_wave(device) else 0
 
 
-def coupled_batch(batch: int, algorithm: str, modal: bool, device: str) -> int:
-    """The realizations a batch of a coupled run, from ``batch``, the memory's: on CUDA, for an
-    algorithm whose steps helpers prepare (``prepares_ahead``), at most :data:`HELPED_WAVES`
-    waves (``modal``: the contact point's), and whole waves where it holds one or more: a helped
-    launch takes about a wave's time for each wave begun, so a batch of whole waves runs the most
-    realizations a second and a run's batches split over devices as its waves do. ``batch``
-    elsewhere."""
+def plan_batches(count: int, batch: int, wave: int, helped_waves: int, direct_waves: float) -> list[int]:
+    """The batch sizes, in order, of ``count`` realizations of a coupled run whose memory holds
+    ``batch``, least in time when a helped launch (of at most ``helped_waves`` waves of ``wave``
+    realizations) takes one time unit a wave begun and a direct one (of more than
+    ``helped_waves`` waves, at most ``batch``) takes ``direct_waves``: some whole memory batches
+    run directly, the rest in helped launches of as many whole waves as fit, the last partial,
+    or in one more direct batch where that is cheaper."""
+    helped = min(helped_waves, batch // wave) * wave  # the largest helped launch the memory holds
+    if helped == 0:
+        return _chunks(count, batch)
+    direct = batch > helped_waves * wave
+    best = (float("inf"), [])
+    for full in range(count // batch + 1 if direct else 1):
+        rest = count - full * batch
+        tail = _chunks(rest, helped)
+        cost = full * direct_waves + -(-rest // wave)
+        if direct and helped < rest <= batch and (full + 1) * direct_waves < cost:
+            cost, tail = (full + 1) * direct_waves, [rest]
+        if cost < best[0]:
+            best = (cost, [batch] * full + tail)
+    return best[1]
+
+
+def coupled_plan(count: int, batch: int, algorithm: str, modal: bool, device: str) -> list[int]:
+    """The batch sizes of a coupled run of ``count`` realizations whose memory holds ``batch``: on
+    CUDA, for an algorithm whose steps helpers prepare (``prepares_ahead``),
+    :func:`plan_batches` with the device's :func:`helped_wave`, :data:`HELPED_WAVES` and
+    :data:`DIRECT_WAVE_TIMES` of the contact point (``modal``), so that a run's realizations split
+    over devices go as fast on each as its share allows; elsewhere batches of ``batch``."""
     if not is_cuda(device) or not coupled_entry(algorithm).prepares_ahead:
-        return batch
-    wave = helped_wave(device)
-    if batch < wave:
-        return batch
-    return min(batch, HELPED_WAVES[modal] * wave) // wave * wave
+        return _chunks(count, batch)
+    return plan_batches(count, batch, helped_wave(device), HELPED_WAVES[modal], DIRECT_WAVE_TIMES[modal])
+
+
+def _chunks(count: int, size: int) -> list[int]:
+    """``count`` in parts of ``size``, the last the rest."""
+    return [size] * (count // size) + ([count % size] if count % size else [])
 
 
 def coupled_series(prepared, params: Params, algorithm: str, device: str, d_start: float | None = None,

@@ -30,7 +30,7 @@ from ..forces.registry import algorithm_entry, coupled_entry, default_algorithm
 from ..forces.steps import BOUNDARIES
 from .batching import check_batch_fits, check_run_fits, default_batch
 from .checkpoint import RunTotals
-from .coupled import contact_compliance, coupled_batch, coupled_series
+from .coupled import contact_compliance, coupled_plan, coupled_series
 from .lines import add_line, check_seed, parametric_line, realization_indices, rough_lines
 from ..roughness.kinds import check_spectrum
 from ..roughness.line_grid import from_params, line_rms
@@ -85,8 +85,9 @@ def run_ensemble(
 
     Realizations (:data:`~mdroll.ensemble.realizations.DEFAULT_REALIZATIONS` when None; an int R
     for 0..R-1, or a sequence of indices) are processed in batches (sized from free device or host memory, capped by
-    ``memory_limit`` bytes, in the coupled mode on CUDA whole waves of helped launches:
-    :func:`~mdroll.ensemble.coupled.coupled_batch`; unless ``batch`` is given): rough lines (section 3) -> force at d0
+    ``memory_limit`` bytes, in the coupled mode on CUDA without a checkpoint
+    planned by its launches' costs: :func:`~mdroll.ensemble.coupled.coupled_plan`; unless
+    ``batch`` is given): rough lines (section 3) -> force at d0
     by ``algorithm`` and the wheel on the linearized contact spring (``mode="decoupled"``,
     section 5.1), or the coupled dynamics of eq 13 (``mode="coupled"``; refused for an
     algorithm without a coupled step) -> PSDs (section 6, optional Hann ``window``) -> running
@@ -218,10 +219,12 @@ def run_ensemble(
         totals = RunTotals.load(checkpoint, key)
         if batch is None and memory_limit is None:
             batch = totals.batch
+    plan = ()  # the batches' sizes, where a coupled run plans them
     if batch is None:
         batch = default_batch(params, device, memory_limit, wanted=len(indices), mode=mode)
-        if mode == "coupled":
-            batch = coupled_batch(batch, algorithm, compliance[0] is not None, device)
+        if mode == "coupled" and checkpoint is None:
+            plan = coupled_plan(len(indices), batch, algorithm, compliance[0] is not None, device)
+            batch = max(plan)
     totals.batch = int(batch)
     check_batch_fits(params, min(totals.batch, len(indices)), device, mode)
     d0 = params.d0
@@ -261,9 +264,11 @@ def run_ensemble(
     # with the size its last batch planned, so that its batches, and the rounding of their
     # merged moments, are the uninterrupted run's
     size = batch if checkpoint is None else min(batch, totals.next_batch)
+    planned = iter(plan)
     workers = None if is_cuda(device) else CpuWorkers(threads, timings)
     try:
         while start < len(indices):
+            size = next(planned, size)
             began = time.perf_counter()
             idx = indices[start:start + size]
             last = start + len(idx) >= len(indices)

@@ -62,8 +62,8 @@ class Algorithm:
         wider one is refused before launch. None: no such limit.
     prepares_ahead : bool
         Its coupled kernel's steps can be prepared ahead by helper warps
-        (:func:`~mdroll.kernels.dynamics.with_helpers` gives its helped variant), which sizes a
-        coupled run's batches on CUDA (:func:`mdroll.ensemble.coupled.coupled_batch`).
+        (:func:`~mdroll.kernels.dynamics.with_helpers` gives its helped variant), which plans a
+        coupled run's batches on CUDA (:func:`mdroll.ensemble.coupled.coupled_plan`).
     bench_variants : tuple of BenchVariant
         Settings the scaling study times beside the default.
     bench_point_limit : dict
