@@ -5,7 +5,10 @@ NumPy, ``irfft`` is NumPy's times n (its callers build spectra already scaled).
 
 On the CPU each row is transformed by the same cached one-row plan, so a row's result does not
 depend on how many rows travel with it (FFTW's plans for different batch counts round
-differently, which would break batch-independent ensembles beyond 1e-12).
+differently, which would break batch-independent ensembles beyond 1e-12). On CUDA every batch
+goes through one cached cuFFT plan of :data:`CUDA_FFT_ROWS` rows per transform and length, its
+last rows padded: the same holds, and the plans' work areas (each up to its rows' size) stay the
+same whatever the sizes of a run's batches, so that repeated runs find the same free memory.
 """
 
 from __future__ import annotations
@@ -108,15 +111,38 @@ def _threads() -> int:
     return getattr(_fftw_threads, "count", None) or cpu_cores()
 
 
-@functools.lru_cache(maxsize=4)
-def _cuda_plan(n: int, fft_type: int, batch: int, ordinal: int):
-    """A cuFFT plan for ``batch`` contiguous transforms of length n on GPU ``ordinal``, kept for
-    the next batch of the same shape (its work area, up to the size of the data, stays
-    allocated while it is cached)."""
+#: Rows one cuFFT plan transforms at once (module docstring): enough to keep the device busy on a
+#: line of 2^12 points and more, a small work area on one of 2^20.
+CUDA_FFT_ROWS = 32
+
+
+@functools.lru_cache(maxsize=8)
+def _cuda_plan(n: int, fft_type: int, ordinal: int):
+    """The cuFFT plan of :data:`CUDA_FFT_ROWS` contiguous transforms of length n on GPU
+    ``ordinal``, kept for every later batch (its work area stays allocated while it is cached)."""
     import cupy
 
     with cupy.cuda.Device(ordinal):
-        return cupy.cuda.cufft.Plan1d(n, fft_type, batch)
+        return cupy.cuda.cufft.Plan1d(n, fft_type, CUDA_FFT_ROWS)
+
+
+def _cuda_rows(x, out, n: int, fft_type: int, direction: int, ordinal: int) -> None:
+    """``out[i] = transform(x[i])`` for each row (CuPy arrays, C-contiguous), by
+    :func:`_cuda_plan` :data:`CUDA_FFT_ROWS` rows at a time, the last rows through a padded
+    scratch of that many; on the current stream. A C2R transform overwrites its input."""
+    import cupy
+
+    plan = _cuda_plan(n, fft_type, ordinal)
+    rows = x.shape[0]
+    whole = rows - rows % CUDA_FFT_ROWS
+    for i in range(0, whole, CUDA_FFT_ROWS):
+        plan.fft(x[i:i + CUDA_FFT_ROWS], out[i:i + CUDA_FFT_ROWS], direction)
+    if whole < rows:
+        source = cupy.zeros((CUDA_FFT_ROWS, x.shape[1]), dtype=x.dtype)
+        source[:rows - whole] = x[whole:]
+        target = cupy.empty((CUDA_FFT_ROWS, out.shape[1]), dtype=out.dtype)
+        plan.fft(source, target, direction)
+        out[whole:] = target[:rows - whole]
 
 
 def irfft_rows(spectrum, n: int, device: str):
@@ -125,9 +151,9 @@ def irfft_rows(spectrum, n: int, device: str):
     (the caller scales the spectrum; physics.md section 3's sum as written).
 
     ``spectrum`` is a Warp ``vec2d`` array (or complex NumPy/CuPy array) on ``device``; on CUDA
-    the transform overwrites it. On CUDA the cached cuFFT plan runs on the spectrum's own memory:
-    CuPy's ``irfft`` would first copy a view like this one, and scale by 1/n in a second pass
-    (docs/performance.md, "Rough lines").
+    the transform overwrites it. On CUDA the cached cuFFT plan runs on the spectrum's own memory
+    (:func:`_cuda_rows`): CuPy's ``irfft`` would first copy a view like this one, and scale by 1/n
+    in a second pass (docs/performance.md, "Rough lines").
     Returns a float64 NumPy array on the CPU (within :func:`mdroll.buffers.reused`, the
     thread's buffer "lines"), a float64 Warp array on CUDA.
     """
@@ -143,8 +169,7 @@ def irfft_rows(spectrum, n: int, device: str):
             if x.shape[1] != n // 2 + 1 or not x.flags.c_contiguous:
                 raise ValueError(f"irfft_rows needs a contiguous (R, {n // 2 + 1}) half spectrum, got {x.shape}")
             out = cupy.empty((x.shape[0], n), dtype=cupy.float64)
-            plan = _cuda_plan(n, cufft.CUFFT_Z2D, x.shape[0], wp.get_device(device).ordinal)
-            plan.fft(x, out, cufft.CUFFT_INVERSE)
+            _cuda_rows(x, out, n, cufft.CUFFT_Z2D, cufft.CUFFT_INVERSE, wp.get_device(device).ordinal)
         return wp.from_dlpack(out)
     x = spectrum.numpy() if isinstance(spectrum, wp.array) else np.asarray(spectrum)
     if x.dtype != np.complex128:
@@ -160,9 +185,14 @@ def rfft_rows(x, device: str, name: str = "half spectrum"):
     on CUDA."""
     if is_cuda(device):
         import cupy
+        from cupy.cuda import cufft
 
         with cupy_stream(device):
-            return cupy.fft.rfft(cupy_view(x), axis=-1)
+            x = cupy.ascontiguousarray(cupy_view(x), dtype=cupy.float64)
+            rows, n = x.shape
+            out = cupy.empty((rows, n // 2 + 1), dtype=cupy.complex128)
+            _cuda_rows(x, out, n, cufft.CUFFT_D2Z, cufft.CUFFT_FORWARD, x.device.id)
+            return out
     wp = warp()
     x = x.numpy() if isinstance(x, wp.array) else np.asarray(x)
     rows, n = x.shape

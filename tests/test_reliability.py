@@ -275,6 +275,57 @@ def test_thesis_scale_batches_fit_a_24_gib_host():
     assert batch * batching.BYTES_PER_POINT * thesis.n_points <= 12 * 2**30
 
 
+def test_repeated_runs_reuse_the_pools_memory(monkeypatch):
+    # default_batch on a simulated CUDA device of 100 realizations' memory: a run that the free
+    # memory would split makes the pools hand theirs back and measures again; the next run of the
+    # same sizes finds that batch idle in the pools and takes it as it is; with less memory about,
+    # or a limit setting the batch, the pools are not trusted, or not asked
+    per = batching.realization_bytes(P)
+    device = {"free": 40 * per, "idle": 60 * per, "released": 0}
+
+    def release(_):
+        device["free"] += device["idle"]
+        device["idle"], device["released"] = 0, device["released"] + 1
+
+    monkeypatch.setattr(batching, "is_cuda", lambda _: True)
+    monkeypatch.setattr(batching, "free_bytes", lambda _: device["free"])
+    monkeypatch.setattr(batching, "idle_pool_bytes", lambda _: device["idle"])
+    monkeypatch.setattr(batching, "release_pools", release)
+    monkeypatch.setattr(batching, "_pooled_batches", {})
+    assert batching.default_batch(P, "cuda:0", wanted=500) == 50 and device["released"] == 1
+    device.update(free=50 * per, idle=50 * per)  # the run's buffers, idle in the pools after it
+    assert batching.default_batch(P, "cuda:0", wanted=500) == 50 and device["released"] == 1
+    assert batching.default_batch(P, "cuda:0", wanted=20) == 25 and device["released"] == 1  # fits: asks nothing
+    device.update(free=30 * per, idle=50 * per)  # another process took memory
+    assert batching.default_batch(P, "cuda:0", wanted=500) == 40 and device["released"] == 2
+    device.update(free=40 * per, idle=40 * per)
+    assert batching.default_batch(P, "cuda:0", memory_limit=10 * per, wanted=500) == 5 and device["released"] == 2
+
+
+def test_idle_pool_memory_is_what_the_pools_keep(cuda_devices):
+    # after the pools hand their memory back, a freed Warp array stays in the stream-ordered pool
+    # (its release threshold keeps it) and counts as idle there, as a freed CuPy block does in CuPy's
+    if not cuda_devices:
+        pytest.skip("no CUDA device")
+    import cupy
+
+    from mdroll.devices import resolve_device
+
+    size = 2**28
+    for dev in cuda_devices:
+        resolve_device(dev)
+        batching.release_pools(dev)
+        assert batching.idle_pool_bytes(dev) < size
+        array = wp.empty(size // 8, dtype=wp.float64, device=dev)
+        del array
+        wp.synchronize_device(dev)
+        assert batching.idle_pool_bytes(dev) >= size
+        with cupy.cuda.Device(wp.get_device(dev).ordinal):
+            block = cupy.empty(size // 8)
+            del block
+        assert batching.idle_pool_bytes(dev) >= 2 * size
+
+
 # ============================================================================= the command line's edges
 # Each case below ends in one line and exit 2, or a complete result: never a traceback, a hang, a
 # silently wrong or lost result.

@@ -83,7 +83,10 @@ def default_batch(params: Params, device: str, memory_limit: int | None = None, 
     On CUDA, memory that Warp's and CuPy's pools keep from earlier work counts as used by the
     driver; when that would split a run of ``wanted`` realizations, the pools hand their unused
     memory back first and the device is measured again (a run after larger ones would
-    otherwise go in several batches: 2x the time of the coupled dynamics at 300 x 2^20).
+    otherwise go in several batches: 2x the time of the coupled dynamics at 300 x 2^20), unless
+    they keep the memory of the batch they last gave for the same sizes, which is then reused
+    as it is (handing it back and taking it again costs milliseconds per GB), or
+    ``memory_limit`` sets the batch.
     """
     per_realization = realization_bytes(params, mode)
 
@@ -94,12 +97,34 @@ def default_batch(params: Params, device: str, memory_limit: int | None = None, 
 
     if not is_cuda(device):
         return fitting(host_available_bytes())
-    wp = warp()
-    batch = fitting(wp.get_device(device).free_memory)
-    if wanted is not None and batch < wanted:
+    free = free_bytes(device)
+    batch = fitting(free)
+    if wanted is not None and batch < wanted and (memory_limit is None or free < memory_limit):
+        key = (device, per_realization, memory_limit)
+        pooled = _pooled_batches.get(key, 0)
+        if batch < pooled <= fitting(free + idle_pool_bytes(device)):
+            return pooled  # the pools still hold the memory of the last such batch: it is reused as it is
         release_pools(device)
-        batch = fitting(wp.get_device(device).free_memory)
+        batch = _pooled_batches[key] = fitting(free_bytes(device))
     return batch
+
+
+#: The batch each (device, bytes a realization, memory limit) was last given after the pools
+#: handed their memory back (:func:`default_batch`): a next run of the same sizes finds that
+#: memory idle in the pools and reuses it, without unmapping and mapping it again.
+_pooled_batches: dict = {}
+
+
+def idle_pool_bytes(device: str) -> int:
+    """Memory the pools of CUDA ``device`` keep without using it: the stream-ordered pool's
+    reserved and unused bytes (Warp's arrays) and CuPy's free blocks."""
+    import cupy
+
+    runtime = cupy.cuda.runtime
+    pool = runtime.deviceGetDefaultMemPool(warp().get_device(device).ordinal)
+    reserved, used = (runtime.memPoolGetAttribute(pool, attribute) for attribute in
+                      (runtime.cudaMemPoolAttrReservedMemCurrent, runtime.cudaMemPoolAttrUsedMemCurrent))
+    return int(reserved - used) + cupy.get_default_memory_pool().free_bytes()
 
 
 def release_pools(device: str) -> None:
