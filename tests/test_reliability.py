@@ -279,7 +279,8 @@ def test_repeated_runs_reuse_the_pools_memory(monkeypatch):
     # default_batch on a simulated CUDA device of 100 realizations' memory: a run that the free
     # memory would split makes the pools hand theirs back and measures again; the next run of the
     # same sizes finds that batch idle in the pools and takes it as it is; with less memory about,
-    # or a limit setting the batch, the pools are not trusted, or not asked
+    # after a run of other sizes (whose buffers the pools hold), or with a limit setting the
+    # batch, the pools are not trusted, or not asked
     per = batching.realization_bytes(P)
     device = {"free": 40 * per, "idle": 60 * per, "released": 0}
 
@@ -291,15 +292,19 @@ def test_repeated_runs_reuse_the_pools_memory(monkeypatch):
     monkeypatch.setattr(batching, "free_bytes", lambda _: device["free"])
     monkeypatch.setattr(batching, "idle_pool_bytes", lambda _: device["idle"])
     monkeypatch.setattr(batching, "release_pools", release)
-    monkeypatch.setattr(batching, "_pooled_batches", {})
+    monkeypatch.setattr(batching, "_last_sized", (None, 0))
     assert batching.default_batch(P, "cuda:0", wanted=500) == 50 and device["released"] == 1
     device.update(free=50 * per, idle=50 * per)  # the run's buffers, idle in the pools after it
     assert batching.default_batch(P, "cuda:0", wanted=500) == 50 and device["released"] == 1
-    assert batching.default_batch(P, "cuda:0", wanted=20) == 25 and device["released"] == 1  # fits: asks nothing
     device.update(free=30 * per, idle=50 * per)  # another process took memory
     assert batching.default_batch(P, "cuda:0", wanted=500) == 40 and device["released"] == 2
     device.update(free=40 * per, idle=40 * per)
-    assert batching.default_batch(P, "cuda:0", memory_limit=10 * per, wanted=500) == 5 and device["released"] == 2
+    coupled = batching.realization_bytes(P, "coupled")
+    assert batching.default_batch(P, "cuda:0", wanted=500, mode="coupled") == 40 * per // coupled
+    assert device["released"] == 3  # its buffers came from the decoupled run's: handed back
+    device.update(free=40 * per, idle=40 * per)
+    assert batching.default_batch(P, "cuda:0", wanted=500) == 40 and device["released"] == 4
+    assert batching.default_batch(P, "cuda:0", memory_limit=10 * per, wanted=500) == 5 and device["released"] == 4
 
 
 def test_idle_pool_memory_is_what_the_pools_keep(cuda_devices):

@@ -97,22 +97,25 @@ def default_batch(params: Params, device: str, memory_limit: int | None = None, 
 
     if not is_cuda(device):
         return fitting(host_available_bytes())
+    global _last_sized
     free = free_bytes(device)
     batch = fitting(free)
+    key = (device, per_realization, memory_limit)
     if wanted is not None and batch < wanted and (memory_limit is None or free < memory_limit):
-        key = (device, per_realization, memory_limit)
-        pooled = _pooled_batches.get(key, 0)
-        if batch < pooled <= fitting(free + idle_pool_bytes(device)):
-            return pooled  # the pools still hold the memory of the last such batch: it is reused as it is
-        release_pools(device)
-        batch = _pooled_batches[key] = fitting(free_bytes(device))
+        last_key, last_batch = _last_sized
+        if last_key == key and batch < last_batch <= fitting(free + idle_pool_bytes(device)):
+            batch = last_batch  # the pools hold the last batch's memory, as this run will use it again
+        else:
+            release_pools(device)
+            batch = fitting(free_bytes(device))
+    _last_sized = (key, batch)
     return batch
 
 
-#: The batch each (device, bytes a realization, memory limit) was last given after the pools
-#: handed their memory back (:func:`default_batch`): a next run of the same sizes finds that
-#: memory idle in the pools and reuses it, without unmapping and mapping it again.
-_pooled_batches: dict = {}
+#: The last batch :func:`default_batch` gave on CUDA and its (device, bytes a realization, memory
+#: limit): a next run of the same sizes finds that batch's memory idle in the pools, in the
+#: pools its buffers come from, and reuses it without unmapping and mapping it again.
+_last_sized: tuple = (None, 0)
 
 
 def idle_pool_bytes(device: str) -> int:
