@@ -6,7 +6,7 @@ NumPy, ``irfft`` is NumPy's times n (its callers build spectra already scaled).
 On the CPU each row is transformed by the same cached one-row plan, so a row's result does not
 depend on how many rows travel with it (FFTW's plans for different batch counts round
 differently, which would break batch-independent ensembles beyond 1e-12). On CUDA every batch
-goes through one cached cuFFT plan of :data:`CUDA_FFT_ROWS` rows per transform and length, its
+goes through one cached cuFFT plan of :func:`cuda_plan_rows` rows per transform and length, its
 last rows padded: the same holds, and the plans' work areas (each up to its rows' size) stay the
 same whatever the sizes of a run's batches, so that repeated runs find the same free memory.
 """
@@ -111,36 +111,44 @@ def _threads() -> int:
     return getattr(_fftw_threads, "count", None) or cpu_cores()
 
 
-#: Rows one cuFFT plan transforms at once (module docstring): enough to keep the device busy on a
-#: line of 2^12 points and more, a small work area on one of 2^20.
+#: Rows one cuFFT plan transforms at once (module docstring), and the points it may hold: enough
+#: to keep the device busy on lines of 2^12 points and more; fewer rows on lines longer than 2^20
+#: points, so that a plan's work area and the padded scratch stay within 2^25 points each.
 CUDA_FFT_ROWS = 32
+CUDA_FFT_POINTS = 2**25
+
+
+def cuda_plan_rows(n: int) -> int:
+    """Rows a cuFFT plan of length n transforms at once: :data:`CUDA_FFT_ROWS`, fewer (at least
+    one) where they would hold more than :data:`CUDA_FFT_POINTS` points."""
+    return max(1, min(CUDA_FFT_ROWS, CUDA_FFT_POINTS // n))
 
 
 @functools.lru_cache(maxsize=8)
 def _cuda_plan(n: int, fft_type: int, ordinal: int):
-    """The cuFFT plan of :data:`CUDA_FFT_ROWS` contiguous transforms of length n on GPU
+    """The cuFFT plan of :func:`cuda_plan_rows` contiguous transforms of length n on GPU
     ``ordinal``, kept for every later batch (its work area stays allocated while it is cached)."""
     import cupy
 
     with cupy.cuda.Device(ordinal):
-        return cupy.cuda.cufft.Plan1d(n, fft_type, CUDA_FFT_ROWS)
+        return cupy.cuda.cufft.Plan1d(n, fft_type, cuda_plan_rows(n))
 
 
 def _cuda_rows(x, out, n: int, fft_type: int, direction: int, ordinal: int) -> None:
     """``out[i] = transform(x[i])`` for each row (CuPy arrays, C-contiguous), by
-    :func:`_cuda_plan` :data:`CUDA_FFT_ROWS` rows at a time, the last rows through a padded
+    :func:`_cuda_plan` :func:`cuda_plan_rows` rows at a time, the last rows through a padded
     scratch of that many; on the current stream. A C2R transform overwrites its input."""
     import cupy
 
-    plan = _cuda_plan(n, fft_type, ordinal)
+    plan, step = _cuda_plan(n, fft_type, ordinal), cuda_plan_rows(n)
     rows = x.shape[0]
-    whole = rows - rows % CUDA_FFT_ROWS
-    for i in range(0, whole, CUDA_FFT_ROWS):
-        plan.fft(x[i:i + CUDA_FFT_ROWS], out[i:i + CUDA_FFT_ROWS], direction)
+    whole = rows - rows % step
+    for i in range(0, whole, step):
+        plan.fft(x[i:i + step], out[i:i + step], direction)
     if whole < rows:
-        source = cupy.zeros((CUDA_FFT_ROWS, x.shape[1]), dtype=x.dtype)
+        source = cupy.zeros((step, x.shape[1]), dtype=x.dtype)
         source[:rows - whole] = x[whole:]
-        target = cupy.empty((CUDA_FFT_ROWS, out.shape[1]), dtype=out.dtype)
+        target = cupy.empty((step, out.shape[1]), dtype=out.dtype)
         plan.fft(source, target, direction)
         out[whole:] = target[:rows - whole]
 

@@ -78,10 +78,14 @@ def test_inverse_fft_is_numpy_times_n(device, n):
 @pytest.mark.parametrize("rows", [1, 33, 70])
 def test_row_transforms_are_numpys_and_each_rows_own(device, rows):
     """Both directions against NumPy for fewer and more rows than one cuFFT plan takes
-    (CUDA_FFT_ROWS: whole plans, then padded rows), and each row's transform bit for bit the
-    same alone as in the batch: batches of any size give a realization the same line."""
+    (cuda_plan_rows: whole plans, then padded rows), and each row's transform bit for bit the
+    same alone as in the batch: batches of any size give a realization the same line. A plan
+    holds at most 2^25 points, one row however long."""
     from mdroll.devices import to_warp, warp
-    from mdroll.fft import irfft_rows, rfft_rows
+    from mdroll.fft import CUDA_FFT_ROWS, cuda_plan_rows, irfft_rows, rfft_rows
+
+    assert cuda_plan_rows(250) == cuda_plan_rows(2**20) == CUDA_FFT_ROWS == 32
+    assert cuda_plan_rows(2**22) == 8 and cuda_plan_rows(2**26) == 1
 
     n = 250
     rng = np.random.default_rng(rows)
