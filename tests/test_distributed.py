@@ -110,6 +110,35 @@ def test_parts_merge_to_the_sample_moments_and_travel_as_one_array(tmp_path):
         run_unit(spec, "cpu", {}, str(tmp_path / "elsewhere"))
 
 
+def test_a_runs_part_is_its_own_rows_and_any_other_a_copy(device):
+    import dataclasses
+
+    result = EnsembleSpec(Params(L=0.05), seed=7, realizations=2).run(device=device)
+    spectra, _, spans = part_of(result, 0)
+    assert spans == ((0, 2),)
+    want = np.stack([getattr(result, name) for name in FIELDS])
+    np.testing.assert_array_equal(spectra, want)
+    assert np.shares_memory(spectra, result.force_psd)  # no copy of the bins before sending
+    # rows of a flat buffer, as CuPy's page-locked copy gives them on every device's host
+    names = ("q", "omega") + FIELDS
+    flat = np.frombuffer(bytearray(len(names) * result.q.nbytes), np.float64)
+    rows = tuple(flat.reshape(len(names), -1))
+    for row, name in zip(rows, names):
+        row[:] = getattr(result, name)
+    spectra = part_of(dataclasses.replace(result, **dict(zip(names, rows))), 0)[0]
+    np.testing.assert_array_equal(spectra, want)
+    assert np.shares_memory(spectra, flat)
+    # the rows of one array out of order or one reversed, or the rows apart: the part is a copy
+    # in the order of SPECTRA
+    others = [dataclasses.replace(result, force_psd=result.accel_psd, accel_psd=result.force_psd),
+              dataclasses.replace(result, force_psd=result.force_psd[::-1]),
+              dataclasses.replace(result, **{name: getattr(result, name).copy() for name in FIELDS})]
+    for other in others:
+        rows = part_of(other, 0)[0]
+        np.testing.assert_array_equal(rows, np.stack([getattr(other, name) for name in FIELDS]))
+        assert not np.shares_memory(rows, result.force_psd.base)
+
+
 def test_local_cluster_gathers_directly_from_quiet_workers():
     import dask
 

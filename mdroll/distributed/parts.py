@@ -33,7 +33,25 @@ _EMPTY = np.empty(0)
 def part_of(result: EnsembleResult, first: int) -> Part:
     """The :data:`Part` of a result of the consecutive realizations from ``first``."""
     bare = dataclasses.replace(result, q=_EMPTY, omega=_EMPTY, **dict.fromkeys(SPECTRA, _EMPTY), realizations=[])
-    return np.stack([getattr(result, name) for name in SPECTRA]), bare, ((first, result.n_real),)
+    return spectra_rows(result), bare, ((first, result.n_real),)
+
+
+def spectra_rows(result: EnsembleResult) -> np.ndarray:
+    """The (4, bins) array of the result's :data:`SPECTRA`: a view where they are consecutive
+    rows of one contiguous buffer, as a run returns them (its spectra come to the host in one
+    copy, page-locked on CUDA: :meth:`~mdroll.ensemble.checkpoint.RunTotals.spectra_on_host`),
+    else a stacked copy. The view spares the worker a copy of every bin into fresh memory before
+    the part is sent."""
+    rows = [getattr(result, name) for name in SPECTRA]
+    first, buffer = rows[0], rows[0].base  # NumPy's base: the array that holds the rows' memory
+    if (isinstance(buffer, np.ndarray) and buffer.flags.c_contiguous and buffer.dtype == first.dtype
+            and all(row.base is buffer and row.shape == first.shape and row.strides == (row.itemsize,)
+                    for row in rows)):
+        flat = buffer.reshape(-1)
+        if [row.ctypes.data for row in rows] == [first.ctypes.data + k * first.nbytes for k in range(len(rows))]:
+            start = (first.ctypes.data - flat.ctypes.data) // flat.itemsize
+            return flat[start:start + len(rows) * first.size].reshape(len(rows), first.size)
+    return np.stack(rows)
 
 
 class PartSum:
