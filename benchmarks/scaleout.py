@@ -12,8 +12,9 @@ by their own time in process). The in-process run goes in a
 spawned child that exits before any cluster starts, so that no GPU memory of this process
 shrinks a worker's batches. In process and on each cluster alike, every workload is timed
 ``--repeat`` times after the same small warm-up of its kernels (and, for the workloads sized in
-seconds, one untimed run at their size: the in-process one that rescales them), and its time is
-the median (all are recorded; the clusters' start-up and warm-up beside). ``--small`` runs the same at a size
+seconds, one untimed run at their size: the in-process one that rescales them), each from an idle
+process or cluster (``IDLE_S`` after the last), and its time is the median (all are recorded; the
+clusters' start-up and warm-up beside). ``--small`` runs the same at a size
 for the CPU (``--device cpu``: worker processes of one core each). Each cluster run also records
 where its time went, on the host's clock: from the call to the first unit's start, the units'
 span, from the last unit's end to the result (the transfers of the parts and their merge), and
@@ -40,6 +41,10 @@ WORKLOADS = (("decoupled-6000", "decoupled", 6000), ("coupled-1200", "coupled", 
              ("decoupled-1s", "decoupled", 1.0), ("decoupled-5s", "decoupled", 5.0),
              ("coupled-1s", "coupled", 1.0), ("coupled-5s", "coupled", 5.0))
 THESIS_L = 5.24288  # m: 2^20 springs of 5 um
+#: Seconds between timed runs: a run starts on an idle cluster, as a user's does. Dask's client
+#: sends its messages at least 10 ms apart, so a run submitted within 10 ms of the last one's
+#: release of its parts (sent as that run returns) would wait for it, which no single run does.
+IDLE_S = 0.05
 SMALL = {"L": 0.1, "decoupled": 48, "coupled": 16}
 WARM_UP_L = 0.05
 
@@ -82,6 +87,7 @@ def timed(spec, run, repeat: int) -> tuple[list[float], object]:
     """``run([spec])`` ``repeat`` times: the seconds of each, and the last result."""
     seconds = []
     for _ in range(repeat):
+        time.sleep(IDLE_S)
         t0 = time.perf_counter()
         (result,) = run([spec])
         seconds.append(time.perf_counter() - t0)
@@ -188,6 +194,7 @@ def main() -> None:
                     runner.run_specs([spec], device=args.device)  # untimed, as the in-process calibration run
                 seconds, found = [], []
                 for _ in range(args.repeat):
+                    time.sleep(IDLE_S)
                     with distributed.get_task_stream(client) as stream:
                         called = time.time()
                         t1 = time.perf_counter()
