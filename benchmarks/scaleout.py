@@ -71,11 +71,16 @@ def calibrated(spec, name: str, run, small: bool):
     return dataclasses.replace(spec, realizations=max(2, int(round(count, 0 if small else -1))))
 
 
-def specs_for(small: bool):
+def specs_for(small: bool, only=None):
+    """The workloads' specs (their counts set later), all or those named in ``only`` with the
+    first of each of their modes, which gives the mode's rate."""
     from mdroll import EnsembleSpec, Params
 
     L = SMALL["L"] if small else THESIS_L
-    return {name: EnsembleSpec(Params(L=L), seed=0, realizations=1, mode=mode) for name, mode, _ in WORKLOADS}
+    modes = {mode for name, mode, _ in WORKLOADS if only is None or name in only}
+    firsts = {next(name for name, m, _ in WORKLOADS if m == mode) for mode in modes}
+    return {name: EnsembleSpec(Params(L=L), seed=0, realizations=1, mode=mode) for name, mode, _ in WORKLOADS
+            if only is None or name in only or name in firsts}
 
 
 def median_run(seconds: list) -> int:
@@ -103,7 +108,7 @@ def warm_up(spec, run) -> float:
     return time.perf_counter() - t0
 
 
-def in_process(device: str, small: bool, repeat: int) -> dict:
+def in_process(device: str, small: bool, repeat: int, only=None) -> dict:
     """In a spawned child: each workload's warm wall times and spectra on ``device`` (the sized
     ones from their mode's first workload's rate, :func:`sized`), and the environment."""
     from mdroll import run_specs
@@ -111,7 +116,7 @@ def in_process(device: str, small: bool, repeat: int) -> dict:
 
     out = {"environment": environment(device), "runs": {}}
     rates = {}
-    for name, spec in specs_for(small).items():
+    for name, spec in specs_for(small, only).items():
         spec = sized(spec, name, rates, small)
         warm_up(spec, lambda s: run_specs([s], device=device))
         spec = calibrated(spec, name, lambda s: run_specs(s, device=device), small)
@@ -165,6 +170,8 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2, help="the larger cluster (default 2)")
     parser.add_argument("--small", action="store_true", help="a size for the CPU: L = 0.1 m, few realizations")
     parser.add_argument("--repeat", type=int, default=3, help="timed runs of each workload, each place (median)")
+    parser.add_argument("--only", nargs="+", choices=[name for name, _, _ in WORKLOADS],
+                        help="these workloads only (with the first of each of their modes)")
     parser.add_argument("--commit", help="the commit measured (default: git rev-parse HEAD, where there is a .git)")
     parser.add_argument("--out", default="scaleout.json")
     args = parser.parse_args()
@@ -174,7 +181,7 @@ def main() -> None:
     from mdroll.distributed import DaskRunner, connect
 
     with multiprocessing.get_context("spawn").Pool(1) as pool:
-        local = pool.apply(in_process, (args.device, args.small, args.repeat))
+        local = pool.apply(in_process, (args.device, args.small, args.repeat, args.only))
     record = {"environment": {**local["environment"], "distributed": distributed.__version__, "commit": args.commit or commit()},
               "workers": args.workers, "repeat": args.repeat, "workloads": {}}
     for name, run in local["runs"].items():
