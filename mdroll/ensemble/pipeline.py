@@ -36,7 +36,7 @@ from ..roughness.kinds import check_spectrum
 from ..roughness.line_grid import from_params, line_rms
 from .result import EnsembleResult
 from .vibration import with_structures
-from .psd import psd_moments_of_batch, series_sums, to_host
+from .psd import array_rows, psd_moments_of_batch, series_sums, to_host
 from .realizations import DEFAULT_REALIZATIONS
 from .workers import CpuWorkers, StageClock, progress_bar
 
@@ -266,6 +266,29 @@ def run_ensemble(
     size = batch if checkpoint is None else min(batch, totals.next_batch)
     planned = iter(plan)
     workers = None if is_cuda(device) else CpuWorkers(threads, timings)
+
+    def finish(queued: QueuedBatch) -> None:
+        """A queued batch's end on the host, once its copies are there: its stages' times, its
+        checks (a failed one ends the run: the moments merged since are never seen or saved) and
+        its force sums."""
+        if queued.copied is not None:
+            warp().synchronize_event(queued.copied)
+        stage.settle(queued.stages)
+        if workers:
+            workers.add_timings()
+        for part, host_sums, psd_bad in queued.chunks:
+            _raise_on_rows(host_sums[:, NOT_FINITE] > 0, "force", "force" if decoupled else "response", part)
+            _raise_on_rows(psd_bad != 0, "force or acceleration PSD", "spectra", part)
+        for _, host_sums, _ in queued.chunks:
+            totals.add_sums(host_sums, params.F_N)
+        totals.largest_batch = max(totals.largest_batch, queued.realizations)
+        bar.update(queued.realizations)
+
+    # Without a checkpoint a batch ends on the host while the next one runs on the device: the
+    # host queues batch k + 1 before it waits for batch k's copies, so the device never waits
+    # for the host between batches. With one, each batch ends before the next begins, so that
+    # the file holds checked totals only.
+    pending = None
     try:
         while start < len(indices):
             size = next(planned, size)
@@ -274,36 +297,32 @@ def run_ensemble(
             last = start + len(idx) >= len(indices)
             parts = _cpu_parts(idx, CPU_CHUNK if workers else len(idx))
             outputs = workers.map(series_moments, parts) if workers else [series_moments(idx, stage)]
-            chunks = []  # (realizations, sums, PSD flags) of each part, in order
+            chunks = []  # (realizations, sums, PSD flags) of each part, in order, on their way to the host
             with queue_on(device):
                 # the parts' moments merged in their order as they come (whichever thread ran them)
                 for part, (steps, sums, (force_moments, accel_moments, psd_not_finite)) in zip(parts, outputs):
                     totals.steps = steps
                     stage("spectra", lambda: totals.add_moments(len(part), force_moments, accel_moments))
-                    chunks.append((part, sums, psd_not_finite))
+                    chunks.append((part, to_host(array_rows(sums, device), page_locked=True, wait=False),
+                                   to_host(psd_not_finite, page_locked=True, wait=False)))
                 if last:
-                    # the result, queued before the last batch's wait, which then covers its copy too
+                    # the result, queued before the last batch's copies are waited for
                     rows = totals.spectra_on_host(params, wait=False)
-            # the batch's one wait: its checks and force sums need the sums and flags on the host (a
-            # failed check ends the run: the moments just merged are never seen or saved)
-            host = [(part, to_host(sums), to_host(psd_not_finite)) for part, sums, psd_not_finite in chunks]
-            stage.settle()
-            if workers:
-                workers.add_timings()
-            for part, host_sums, psd_bad in host:
-                _raise_on_rows(host_sums[:, NOT_FINITE] > 0, "force", "force" if decoupled else "response", part)
-                _raise_on_rows(psd_bad != 0, "force or acceleration PSD", "spectra", part)
-            for _, host_sums, _ in host:
-                totals.add_sums(host_sums, params.F_N)
-            totals.largest_batch = max(totals.largest_batch, len(idx))
+            queued = QueuedBatch(len(idx), chunks, stage.take(), copies_done(device))
+            del outputs
+            if pending is not None:
+                finish(pending)
+            pending = queued
             if checkpoint is not None:
+                finish(pending)
+                pending = None
                 # the next batch: what this one's rate does in CHECKPOINT_SECONDS, within the memory's batch
                 rate = len(idx) / max(time.perf_counter() - began, 1e-9)
                 size = totals.next_batch = int(min(batch, max(1, rate * CHECKPOINT_SECONDS)))
                 totals.save(checkpoint, key)
-            bar.update(len(idx))
             start += len(idx)
-            del outputs, chunks, host
+        if pending is not None:
+            finish(pending)
     finally:
         if workers:
             workers.close()
@@ -323,6 +342,29 @@ def run_ensemble(
         batch=totals.largest_batch, realizations=indices.tolist(), window=bool(window),
     )
     return with_structures(result, track, wheel)
+
+
+@dataclasses.dataclass
+class QueuedBatch:
+    """A batch whose work is queued: its realizations' count, each part's ``(realizations,
+    sums, PSD flags)`` with the host copies of the last two on their way, its stages' events
+    (:meth:`StageClock.take`) and the event after its copies (None on the CPU, where they are
+    there at once)."""
+
+    realizations: int
+    chunks: list
+    stages: list
+    copied: object
+
+
+def copies_done(device: str):
+    """An event on ``device``'s stream after the work queued so far (None on the CPU)."""
+    if not is_cuda(device):
+        return None
+    wp = warp()
+    event = wp.Event(device)
+    wp.get_stream(device).record_event(event)
+    return event
 
 
 def _cpu_parts(idx: np.ndarray, size: int) -> list[np.ndarray]:

@@ -106,12 +106,19 @@ class StageClock:
         wp.get_stream(self.device).record_event(event)
         return event
 
-    def settle(self) -> None:
-        """Add the recorded stages' times (waits for the last of them)."""
+    def take(self) -> list:
+        """The stages recorded since the last call, for a later :meth:`settle`."""
+        taken, self.pending = self.pending, []
+        return taken
+
+    def settle(self, stages: list | None = None) -> None:
+        """Add the times of ``stages`` (:meth:`take`; default: all recorded and not taken),
+        waiting for the last of them."""
         wp = warp()
-        for name, start, end in self.pending:
+        for name, start, end in self.pending if stages is None else stages:
             self.timings[name] += wp.get_event_elapsed_time(start, end) / 1e3
-        self.pending.clear()
+        if stages is None:
+            self.pending.clear()
 
 
 class _NoBar:
