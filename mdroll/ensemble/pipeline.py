@@ -267,7 +267,7 @@ def run_ensemble(
     planned = iter(plan)
     workers = None if is_cuda(device) else CpuWorkers(threads, timings)
 
-    def finish(queued: QueuedBatch) -> None:
+    def finish(queued: _QueuedBatch) -> None:
         """A queued batch's end on the host, once its copies are there: its stages' times, its
         checks (a failed one ends the run: the moments merged since are never seen or saved) and
         its force sums."""
@@ -308,7 +308,7 @@ def run_ensemble(
                 if last:
                     # the result, queued before the last batch's copies are waited for
                     rows = totals.spectra_on_host(params, wait=False)
-            queued = QueuedBatch(len(idx), chunks, stage.take(), copies_done(device))
+            queued = _QueuedBatch(len(idx), chunks, stage.take(), _copies_done(device))
             del outputs
             if pending is not None:
                 finish(pending)
@@ -345,11 +345,11 @@ def run_ensemble(
 
 
 @dataclasses.dataclass
-class QueuedBatch:
+class _QueuedBatch:
     """A batch whose work is queued: its realizations' count, each part's ``(realizations,
     sums, PSD flags)`` with the host copies of the last two on their way, its stages' events
-    (:meth:`StageClock.take`) and the event after its copies (None on the CPU, where they are
-    there at once)."""
+    (:meth:`~mdroll.ensemble.workers.StageClock.take`) and the event after its copies (None on
+    the CPU, where they are there at once)."""
 
     realizations: int
     chunks: list
@@ -357,7 +357,7 @@ class QueuedBatch:
     copied: object
 
 
-def copies_done(device: str):
+def _copies_done(device: str):
     """An event on ``device``'s stream after the work queued so far (None on the CPU)."""
     if not is_cuda(device):
         return None
