@@ -195,6 +195,8 @@ COMMANDS = {
         ("options", "python benchmarks/tree_tuning.py"),
     "python benchmarks/kernel_resources.py --match tree": ("options", "python benchmarks/kernel_resources.py"),
     "python benchmarks/scaleout.py --device cuda:0 --out scaleout.json": ("options", "python benchmarks/scaleout.py"),
+    "python benchmarks/unit_latency.py --device cuda:0 --out unit_latency.json":
+        ("options", "python benchmarks/unit_latency.py"),
     "python benchmarks/cpu_full_run.py --repeats 3 --out cpu_full_run.json":
         ("options", "python benchmarks/cpu_full_run.py"),
     "OUT=DIR bash benchmarks/gpu_session.sh tests": ("ci", "the GPU machine's session script"),
