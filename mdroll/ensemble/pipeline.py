@@ -332,7 +332,6 @@ def run_ensemble(
         with queue_on(device):
             rows = totals.spectra_on_host(params)
     q, omega, force_psd, force_psd_stderr, accel_psd, accel_psd_stderr = rows
-    stage.settle()
     n = len(indices)
     result = EnsembleResult(
         q=q, omega=omega, force_psd=force_psd, force_psd_stderr=force_psd_stderr, accel_psd=accel_psd,

@@ -76,11 +76,11 @@ class CpuWorkers:
 class StageClock:
     """Seconds per stage: ``clock(name, fn)`` runs ``fn`` and adds its time to ``timings[name]``.
 
-    On CUDA each stage is bracketed by two events on the device's stream, read by :meth:`settle`
-    after the batch's one wait: the host queues a stage while the device still runs the one
-    before (synchronizing around every stage would leave the device idle through all the host
-    work between launches). A stage's time
-    is then the device's, from reaching the stage's first command to finishing its last. On
+    On CUDA each stage is bracketed by two events on the device's stream, taken a batch at a
+    time (:meth:`take`) and read by :meth:`settle` after the batch's one wait: the host queues a
+    stage while the device still runs the one before (synchronizing around every stage would
+    leave the device idle through all the host work between launches). A stage's time is then
+    the device's, from reaching the stage's first command to finishing its last. On
     the CPU launches are synchronous: wall time.
     """
 
@@ -111,14 +111,11 @@ class StageClock:
         taken, self.pending = self.pending, []
         return taken
 
-    def settle(self, stages: list | None = None) -> None:
-        """Add the times of ``stages`` (:meth:`take`; default: all recorded and not taken),
-        waiting for the last of them."""
+    def settle(self, stages: list) -> None:
+        """Add the times of ``stages`` (:meth:`take`), waiting for the last of them."""
         wp = warp()
-        for name, start, end in self.pending if stages is None else stages:
+        for name, start, end in stages:
             self.timings[name] += wp.get_event_elapsed_time(start, end) / 1e3
-        if stages is None:
-            self.pending.clear()
 
 
 class _NoBar:
