@@ -135,6 +135,32 @@ def test_non_finite_force_stops_the_run_naming_realization_and_stage(monkeypatch
         run_ensemble(P, realizations=range(2, 6), device="cpu", batch=2, progress=False)
 
 
+def test_a_failed_batch_ends_the_run_after_the_next_was_queued_and_before_with_a_checkpoint(
+        monkeypatch, device, tmp_path):
+    """Without a checkpoint the host queues batch k + 1 before it checks batch k; the failed
+    check still ends the run, naming the realization. With one, no batch begins before the last
+    ended."""
+    real = pipeline.rough_lines
+    made = []
+
+    def poisoned(params, seed, idx, device, **options):
+        made.append(list(idx))
+        lines = real(params, seed, idx, device=device, **options)
+        lines = np.array(lines.numpy() if hasattr(lines, "numpy") else lines)
+        if 0 in idx:
+            lines[list(idx).index(0), 100] = np.nan
+        return lines
+
+    monkeypatch.setattr(pipeline, "rough_lines", poisoned)
+    with pytest.raises(NonFiniteError, match="realization 0 at stage 'force'"):
+        run_ensemble(P, realizations=6, device=device, batch=2, progress=False)
+    assert made == [[0, 1], [2, 3]]
+    made.clear()
+    with pytest.raises(NonFiniteError, match="realization 0 at stage 'force'"):
+        run_ensemble(P, realizations=6, device=device, batch=2, progress=False, checkpoint=tmp_path / "c.npz")
+    assert made == [[0]]  # a checkpointed run's first batch holds one realization
+
+
 def test_contact_loss_is_counted_in_both_modes():
     # 50 um roughness with waves up to 5 cm at 30 m/s: the wheel leaves the rail in places
     rough = Params(L=0.2, h0=50e-6, q_min=2 * np.pi / 0.05, v0=30.0)
