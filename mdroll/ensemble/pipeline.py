@@ -312,10 +312,10 @@ def run_ensemble(
             del outputs
             if pending is not None:
                 finish(pending)
-            pending = queued
-            if checkpoint is not None:
-                finish(pending)
-                pending = None
+            if checkpoint is None:
+                pending = queued
+            else:
+                finish(queued)
                 # the next batch: what this one's rate does in CHECKPOINT_SECONDS, within the memory's batch
                 rate = len(idx) / max(time.perf_counter() - began, 1e-9)
                 size = totals.next_batch = int(min(batch, max(1, rate * CHECKPOINT_SECONDS)))
